@@ -1,0 +1,1 @@
+"""Board descriptions (pin maps, ADC and PWM facts) and the simulated actuator board."""

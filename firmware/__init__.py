@@ -1,0 +1,1 @@
+"""lsea-kit firmware: MicroPython modules that run on the board (and unchanged under CPython in tests)."""

@@ -1,0 +1,44 @@
+"""The `host` command line: discovers one subcommand per module in `host.commands`."""
+
+import argparse
+import importlib
+import pkgutil
+import sys
+
+import host
+import host.commands
+from host.errors import UserError
+
+
+def build_parser():
+    parser = argparse.ArgumentParser(
+        prog="host",
+        description="lsea-kit host tools: fit potentiometer calibrations, talk to the board, "
+        "run the guided calibration and the paper's experiments.",
+    )
+    parser.add_argument("--version", action="version", version="lsea-kit " + host.__version__)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for info in sorted(pkgutil.iter_modules(host.commands.__path__), key=lambda m: m.name):
+        module = importlib.import_module("host.commands." + info.name)
+        module.add_parser(sub)
+    return parser
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return args.func(args) or 0
+    except UserError as exc:
+        print("error: %s" % exc, file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

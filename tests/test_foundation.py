@@ -1,0 +1,34 @@
+"""The package installs, the CLI answers, and the real MicroPython interpreter is available."""
+
+import subprocess
+import sys
+
+from micropython_runner import run_micropython
+
+
+def test_cli_help_lists_commands():
+    out = subprocess.run([sys.executable, "-m", "host", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0
+    assert "usage: host" in out.stdout
+
+
+def test_micropython_is_real_and_locks_heap():
+    proc = run_micropython(
+        "import sys, micropython\n"
+        "print(sys.implementation.name)\n"
+        "def f():\n"
+        "    return [1]\n"
+        "micropython.heap_lock()\n"
+        "try:\n"
+        "    f()\n"
+        "    print('allocated')\n"
+        "except MemoryError:\n"
+        "    print('locked')\n"
+        "micropython.heap_unlock()\n"
+    )
+    assert proc.stdout.split() == ["micropython", "locked"]
+
+
+def test_firmware_package_imports_under_micropython():
+    proc = run_micropython("import firmware\nprint('ok')")
+    assert proc.stdout.strip() == "ok"
