@@ -1,0 +1,232 @@
+"""The firmware application: boot (board file, calibration), the command surface, the main loop.
+
+The link (firmware/link.py) calls these methods; the timer calls Controller.step. Every path
+out of run() (return, exception, KeyboardInterrupt, soft reset's SystemExit) leaves the motor
+off. Without a usable calibration, raw readings and open loop still work; closed-loop modes are
+refused with the reason, and status() shows it.
+"""
+
+from firmware import hal
+from firmware.board_config import load_board
+from firmware.controller import (
+    FORCE,
+    IDLE,
+    MODE_NAMES,
+    OPEN_LOOP,
+    PARAMS,
+    POSITION,
+    Controller,
+)
+from firmware.measurement import STROKE_CLAMP_UM, Measurement
+from firmware.motor import Motor
+from firmware.pi_control import DUTY_MAX
+from firmware.safety import FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, Safety
+from firmware.sampler import Sampler
+from firmware.telemetry import Ring
+
+VERSION = "0.1.0"
+FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
+
+try:
+    import micropython
+
+    micropython.alloc_emergency_exception_buf(100)  # tracebacks from the timer IRQ
+except (ImportError, AttributeError):
+    pass
+
+
+def _load_calibration(path):
+    """(calibration, None) or (None, reason)."""
+    if path is None:
+        return None, "no calibration file configured"
+    try:
+        from firmware.calibration import CalibrationError, load_calibration
+    except ImportError as exc:
+        return None, "calibration loader missing (%s)" % exc
+    try:
+        return load_calibration(path), None
+    except CalibrationError as exc:
+        return None, "calibration %s unusable: %s" % (path, exc)
+    except OSError:
+        return None, "calibration file %s not found" % path
+    except (ValueError, KeyError, TypeError) as exc:  # corrupt content the loader did not catch
+        return None, "calibration %s corrupt: %r" % (path, exc)
+
+
+class App:
+    def __init__(self, board_path, calibration_path, machine=None, ring_records=128):
+        self.board = load_board(board_path)
+        self.machine = hal.get_machine(self.board, machine)
+        # The motor first, so that whatever fails later at boot, the bridge is already off.
+        self.motor = Motor(self.machine, self.board)
+        self.sampler = Sampler(self.machine, self.board)
+        self.calibration, self.calibration_error = _load_calibration(calibration_path)
+        meas = None
+        if self.calibration is not None:
+            try:
+                meas = Measurement(self.calibration)
+            except ValueError as exc:
+                self.calibration_error = str(exc)
+        self.telemetry = Ring(ring_records)
+        self.safety = Safety(self.board["loop_hz"], (1 << self.board["adc_bits"]) - 1)
+        self.ctrl = Controller(self.sampler, meas, self.motor, self.telemetry, self.safety, self.board["loop_hz"])
+        self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
+        self._timer = None
+        self._quit = False
+
+    # --- commands (each one also counts as hearing from the host) ---------------------------
+    def status(self):
+        sf = self.safety
+        cal = self.calibration
+        return {
+            "version": VERSION,
+            "board": self.board["name"],
+            "calibration_crc": cal.crc if cal is not None else None,
+            "calibration_error": self.calibration_error,
+            "mode": MODE_NAMES[self.ctrl.mode],
+            "faults": sf.names(),
+            "last_fault": sf.describe(),
+            "target": self.ctrl.target,
+            "duty": self.ctrl.duty,
+            "steps": self.ctrl.steps,
+        }
+
+    def heartbeat(self):
+        self.safety.heard()
+
+    def stop(self):
+        self.ctrl.mode = IDLE
+        self.motor.off()
+        self.ctrl.duty = 0
+        self.safety.heard()
+
+    def reset(self):
+        """Clear latched faults and go idle (the motor stays off until a new set_mode)."""
+        self.stop()
+        self.sampler.clear_rail()
+        self.safety.clear()
+        self.ctrl.pi.reset()
+
+    def _why_not(self, mode):
+        if self.safety.faults:
+            return "fault latched (%s): reset first" % self.safety.describe()
+        if mode in (POSITION, FORCE):
+            m = self.ctrl.meas
+            if m is None:
+                return "%s mode needs a calibration: %s" % (MODE_NAMES[mode], self.calibration_error)
+            return m.missing_for(MODE_NAMES[mode])
+        return None
+
+    def set_mode(self, name):
+        if name not in MODE_NAMES:
+            raise ValueError("unknown mode %r (one of %s)" % (name, ", ".join(MODE_NAMES)))
+        mode = MODE_NAMES.index(name)
+        self.safety.heard()
+        if mode == IDLE:
+            self.stop()
+            return
+        why = self._why_not(mode)
+        if why:
+            raise ValueError(why)
+        c = self.ctrl
+        c.mode = IDLE  # the step keeps the motor off while the new mode is set up
+        c.pi.reset()
+        if mode == POSITION:
+            c.target = c.meas.d2  # hold where it is until told otherwise
+        elif mode == FORCE:
+            c.defl_target = c.meas.deformation_for(0)
+            c.target = 0
+        else:
+            c.target = 0
+        c.mode = mode
+
+    def set_target(self, value):
+        value = int(value)
+        self.safety.heard()
+        c = self.ctrl
+        if c.mode == OPEN_LOOP or c.mode == IDLE:
+            if c.mode == OPEN_LOOP and not -DUTY_MAX <= value <= DUTY_MAX:
+                raise ValueError("open-loop duty must be within +-%d" % DUTY_MAX)
+        elif c.mode == POSITION:
+            if not -STROKE_CLAMP_UM <= value <= STROKE_CLAMP_UM:
+                raise ValueError("position target must be within +-%d um" % STROKE_CLAMP_UM)
+        elif c.mode == FORCE:
+            if not -FORCE_TARGET_MAX_MN <= value <= FORCE_TARGET_MAX_MN:
+                raise ValueError("force target must be within +-%d mN" % FORCE_TARGET_MAX_MN)
+            c.defl_target = c.meas.deformation_for(value)
+        c.target = value
+
+    def params(self):
+        return [name for name, _, _, _ in PARAMS]
+
+    def _param_index(self, name):
+        for i, row in enumerate(PARAMS):
+            if row[0] == name:
+                return i
+        raise ValueError("unknown parameter %r" % (name,))
+
+    def get_param(self, name):
+        self.safety.heard()
+        return self.ctrl.p[self._param_index(name)]
+
+    def set_param(self, name, value):
+        i = self._param_index(name)
+        value = int(value)
+        _, _, lo, hi = PARAMS[i]
+        if not lo <= value <= hi:
+            raise ValueError("%s must be within %d..%d" % (name, lo, hi))
+        self.safety.heard()
+        self.ctrl.p[i] = value
+        self.ctrl.apply_params()
+
+    def set_stream(self, hz):
+        hz = int(hz)
+        loop_hz = self.board["loop_hz"]
+        if hz < 0 or hz > loop_hz:
+            raise ValueError("stream rate must be 0..%d Hz" % loop_hz)
+        self.safety.heard()
+        self.telemetry.every = loop_hz // hz if hz else 0
+        self.telemetry.clear()
+
+    # --- the loop ---------------------------------------------------------------------------
+    def start(self):
+        """Start the control timer (run() does this)."""
+        if self._timer is None:
+            self._timer = hal.timer(self.machine, self.board)
+            hal.start_timer(self._timer, self.machine, self.board, self.step)
+
+    def shutdown(self):
+        """Stop the timer, then the motor. Safe to call any number of times."""
+        self.ctrl.mode = IDLE
+        try:
+            if self._timer is not None:
+                self._timer.deinit()
+        finally:
+            self._timer = None
+            self.motor.off()
+            self.ctrl.duty = 0
+
+    def quit(self):
+        """Ask run() to return after the current iteration (e.g. from a link command)."""
+        self._quit = True
+
+    def run(self, link=None):
+        """Main loop: the timer runs the step, this loop serves the link. Motor off on exit."""
+        idle = getattr(self.machine, "idle", None)
+        self._quit = False
+        try:
+            self.start()
+            while not self._quit:
+                if link is not None:
+                    link.poll()
+                if idle is not None:
+                    idle()
+        except KeyboardInterrupt:
+            self.safety.trip(FAULT_INTERRUPTED)
+            raise
+        except Exception as exc:
+            self.safety.exc = exc
+            self.safety.trip(FAULT_RUN_EXCEPTION)
+            raise
+        finally:
+            self.shutdown()

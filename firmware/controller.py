@@ -1,0 +1,157 @@
+"""The control step: sample, check, convert, control, limit, drive, record. One call per tick.
+
+Called by a hard timer interrupt on a board, so it allocates nothing, uses integers only and
+never raises: an exception inside it stops the motor and is recorded as a fault. Parameters live
+in one preallocated array('i') (PARAMS gives names, defaults and the ranges that keep every
+intermediate within +-2**30); the main loop changes them through App.set_param.
+"""
+
+from array import array
+
+from firmware.pi_control import DUTY_MAX, GAIN_MAX, PI, slew
+from firmware.portable import const
+from firmware.safety import (
+    FAULT_HOST_TIMEOUT,
+    FAULT_RAIL_POT1,
+    FAULT_RAIL_POT2,
+    FAULT_STEP_EXCEPTION,
+)
+from firmware.sampler import NO_RAIL, RAIL_POT1
+
+IDLE = const(0)
+OPEN_LOOP = const(1)
+POSITION = const(2)
+FORCE = const(3)
+MODE_NAMES = ("idle", "open_loop", "position", "force")
+
+# Parameter indices (into Controller.p) and the table: name, default, min, max.
+P_KP_POS = const(0)
+P_KI_POS = const(1)
+P_KP_FORCE = const(2)
+P_KI_FORCE = const(3)
+P_OUT_LIMIT = const(4)
+P_INT_LIMIT = const(5)
+P_SLEW = const(6)
+P_HOST_TIMEOUT_MS = const(7)
+P_RAIL_READS = const(8)
+P_RAIL_MARGIN = const(9)
+P_STROKE_MIN = const(10)
+P_STROKE_MAX = const(11)
+P_SLOW_ZONE = const(12)
+PARAMS = (
+    ("kp_pos", 512, 0, GAIN_MAX),  # Q8 duty per um of position error
+    ("ki_pos", 16, 0, GAIN_MAX),  # Q8 duty per um per step, into the Q8 integral
+    ("kp_force", 2560, 0, GAIN_MAX),  # Q8 duty per um of deformation error
+    ("ki_force", 64, 0, GAIN_MAX),
+    ("out_limit", 8000, 0, DUTY_MAX),  # |PI output| limit, duty
+    ("int_limit", 6000, 0, DUTY_MAX),  # |integral| limit, duty
+    ("slew", 50, 0, DUTY_MAX),  # max duty change per step (0 = unlimited)
+    ("host_timeout_ms", 1000, 0, 600000),  # host silence that stops the motor (0 = off)
+    ("rail_reads", 4, 1, 1000),  # consecutive reads at a rail that make a fault
+    ("rail_margin", 0, 0, 255),  # codes from the rail that count as "at the rail"
+    ("stroke_min_um", 1000, -65535, 65535),  # soft stroke limits on D1* and D2
+    ("stroke_max_um", 59000, -65535, 65535),
+    ("slow_zone_um", 3000, 1, 65535),  # duty fades to 0 over this distance before a limit
+)
+_T_MASK = const(0x3FFFFFFF)
+
+
+class Controller:
+    def __init__(self, sampler, measurement, motor, ring, safety, loop_hz):
+        self.sampler = sampler
+        self.meas = measurement  # None without a usable calibration: raw readings only
+        self.motor = motor
+        self.ring = ring
+        self.safety = safety
+        self.pi = PI()
+        self.p = array("i", [d for _, d, _, _ in PARAMS])
+        self.period_us = 1000000 // loop_hz
+        self.mode = IDLE
+        self.target = 0  # duty (open_loop), um (position) or mN (force)
+        self.defl_target = 0  # um, from the force target through d(F0)
+        self.duty = 0
+        self.t_us = 0
+        self.steps = 0
+        self.apply_params()
+
+    def apply_params(self):
+        """Push the parameters that live in other objects (call after changing self.p)."""
+        self.safety.set_timeout_ms(self.p[P_HOST_TIMEOUT_MS])
+        self.sampler.rail_reads = self.p[P_RAIL_READS]
+        self.sampler.rail_margin = self.p[P_RAIL_MARGIN]
+
+    def step(self, _timer=None):
+        """The timer callback. Never raises: a failure stops the motor and latches a fault."""
+        try:
+            self._step()
+        except Exception as exc:  # a hard IRQ cannot propagate it, so record and stop
+            self.mode = IDLE
+            self.duty = 0
+            self.safety.exc = exc
+            self.safety.trip(FAULT_STEP_EXCEPTION)
+            try:
+                self.motor.off()
+            except Exception:
+                pass
+
+    def _step(self):
+        s = self.sampler
+        sf = self.safety
+        p = self.p
+        s.sample()
+        if s.rail != NO_RAIL and not (sf.faults & (FAULT_RAIL_POT1 | FAULT_RAIL_POT2)):
+            sf.rail_value = s.rail_value
+            sf.trip(FAULT_RAIL_POT1 if s.rail == RAIL_POT1 else FAULT_RAIL_POT2)
+        mode = self.mode
+        if mode != IDLE and sf.tick():
+            sf.trip(FAULT_HOST_TIMEOUT)
+        m = self.meas
+        if m is not None:
+            m.update(s.raw1, s.raw2)
+        if sf.faults:
+            mode = IDLE
+            self.mode = IDLE
+        if mode == IDLE:
+            duty = 0
+        else:
+            if mode == OPEN_LOOP:
+                cmd = self.target
+            elif mode == POSITION:
+                cmd = self.pi.update(self.target - m.d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT])
+            else:
+                cmd = self.pi.update(
+                    self.defl_target - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]
+                )
+            if m is not None:
+                cmd = self._stroke_limit(cmd, m.d1, m.d2)
+            duty = slew(self.duty, cmd, p[P_SLEW])
+            if mode != OPEN_LOOP:
+                self.pi.applied(duty)
+        self.motor.set(duty)
+        self.duty = duty
+        self.steps += 1
+        self.t_us = (self.t_us + self.period_us) & _T_MASK
+        r = self.ring
+        if r.due():
+            if m is None:
+                r.write_record(self.t_us, s.raw1, s.raw2, s.raw_ref, 0, 0, 0, 0, self.target, duty, mode, sf.faults)
+            else:
+                r.write_record(
+                    self.t_us, s.raw1, s.raw2, s.raw_ref, m.d1, m.d2, m.defl, m.force, self.target, duty, mode, sf.faults
+                )
+
+    def _stroke_limit(self, cmd, d1, d2):
+        """Soft stroke limits: the duty fades to 0 across slow_zone_um before either end."""
+        p = self.p
+        if cmd > 0:
+            room = p[P_STROKE_MAX] - (d1 if d1 > d2 else d2)
+        elif cmd < 0:
+            room = (d1 if d1 < d2 else d2) - p[P_STROKE_MIN]
+        else:
+            return 0
+        if room <= 0:
+            return 0
+        zone = p[P_SLOW_ZONE]
+        if room < zone:
+            return (cmd * room) // zone  # |cmd| <= 10000, room < 65536: < 2**30
+        return cmd

@@ -1,0 +1,84 @@
+"""Measurement: ADC codes to D1, D2, the Df-corrected D1*, the spring deformation and the force.
+
+    D1 = conv(pot1 code)   D2 = conv(pot2 code)       (bcm3 or pwl, per pot, from the calibration)
+    D1* = D1 - Df_hat(D1)                             (poly, when the Df step was calibrated)
+    d = D1* - D2                                      (um)
+    F = F0(d)                                         (poly, mN, when the force step was calibrated)
+The integer math is B's (bcm_fixed, pwl_fixed, poly_fixed); it allocates nothing and keeps its
+intermediates within +-2**30. Positions are clamped to +-STROKE_CLAMP_UM so that d and every
+error the controllers form from them stay within +-2**17.
+"""
+
+from firmware.portable import const
+
+STROKE_CLAMP_UM = const(65535)
+
+try:
+    from firmware.bcm_fixed import bcm3
+    from firmware.poly_fixed import poly
+    from firmware.pwl_fixed import pwl
+
+    MATH_ERROR = None
+except ImportError as exc:  # B's modules not installed on this board yet
+    bcm3 = pwl = poly = None
+    MATH_ERROR = "fixed-point math modules missing (%s)" % exc
+
+
+def _clamp_um(x):
+    if x > STROKE_CLAMP_UM:
+        return STROKE_CLAMP_UM
+    if x < -STROKE_CLAMP_UM:
+        return -STROKE_CLAMP_UM
+    return x
+
+
+def _converter(kind):
+    if kind == "bcm3":
+        return bcm3
+    if kind == "pwl":
+        return pwl
+    raise ValueError("unknown pot conversion %r" % (kind,))
+
+
+class Measurement:
+    """Holds the calibration constants and the latest converted values (all ints)."""
+
+    def __init__(self, calibration):
+        if MATH_ERROR is not None:
+            raise ValueError(MATH_ERROR)
+        kind1, self.k1 = calibration.pot1
+        kind2, self.k2 = calibration.pot2
+        self.conv1 = _converter(kind1)
+        self.conv2 = _converter(kind2)
+        self.poly = poly
+        self.k_df = calibration.df
+        self.k_force = calibration.force
+        self.k_force_inv = calibration.force_inverse
+        self.d1 = 0  # D1*, um (D1 when Df is not calibrated)
+        self.d2 = 0
+        self.defl = 0
+        self.force = 0
+
+    def missing_for(self, mode_name):
+        """None when `mode_name` can run with this calibration, else the reason it cannot."""
+        if mode_name == "force":
+            if self.k_df is None:
+                return "force mode needs the Df (assembly) calibration"
+            if self.k_force is None or self.k_force_inv is None:
+                return "force mode needs the force calibration F0(d) and d(F0)"
+        return None
+
+    def update(self, raw1, raw2):
+        d1 = _clamp_um(self.conv1(raw1, self.k1))
+        if self.k_df is not None:
+            d1 = _clamp_um(d1 - self.poly(d1, self.k_df))
+        d2 = _clamp_um(self.conv2(raw2, self.k2))
+        self.d1 = d1
+        self.d2 = d2
+        self.defl = d1 - d2
+        if self.k_force is not None:
+            self.force = self.poly(self.defl, self.k_force)
+
+    def deformation_for(self, force_mN):
+        """Target deformation for a target force, through the fitted inverse d(F0)."""
+        return _clamp_um(self.poly(force_mN, self.k_force_inv))
