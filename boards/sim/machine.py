@@ -1,0 +1,259 @@
+"""A module shaped like MicroPython's `machine`, backed by the simulated actuator.
+
+`configure(board, seed)` builds the world from a board dict (boards/sim.json). Pins are labels:
+ADC pins name the channels (board["adc_pins"]), motor pins the H-bridge inputs
+(board["motor_pins"]). The motor voltage follows the board's driver:
+  two_pwm (DRV8833 IN1/IN2): V = supply * (duty_in1 - duty_in2) / 65535
+  pwm_dir (TB6612 PWM + DIR): V = +-supply * duty / 65535, + when the dir pin is 1
+Time: `run_ticks(n)` advances physics one timer period and then fires the timer callback, n times
+(deterministic, for tests); `idle()` does the same for each tick due by the wall clock (the
+real-time virtual board), catching up at most max_catchup_ticks at once and counting the rest
+in `skipped_ticks`. Setters and ADC reads only store or read small ints, so a firmware step that
+calls them can run under micropython.heap_lock(); the float physics runs between callbacks.
+"""
+
+import time
+
+from boards.sim.actuator import CHANNELS, Actuator
+
+_world = None
+_board = None
+_timer = None
+_pins = {}  # label -> Pin (the last one made for that label)
+_pwms = {}  # label -> PWM
+ticks = 0  # timer ticks fired (run_ticks and idle)
+skipped_ticks = 0  # ticks idle() dropped after a stall instead of catching up
+_next_due = 0
+_max_catchup = 20
+
+try:
+    _ticks_us = time.ticks_us
+    _ticks_diff = time.ticks_diff
+    _ticks_add = time.ticks_add
+except AttributeError:  # CPython
+
+    def _ticks_us():
+        return int(time.perf_counter() * 1000000)
+
+    def _ticks_diff(a, b):
+        return a - b
+
+    def _ticks_add(a, b):
+        return a + b
+
+
+def configure(board, seed=None):
+    """Create the simulated world for this board (a fresh actuator, no timer, motor off)."""
+    global _world, _board, _timer, _pins, _pwms, ticks, skipped_ticks, _max_catchup
+    params = dict(board["actuator"])
+    params["adc_bits"] = board["adc_bits"]
+    _world = Actuator(params, board.get("seed", 0) if seed is None else seed)
+    _board = board
+    _timer = None
+    _pins = {}
+    _pwms = {}
+    ticks = 0
+    skipped_ticks = 0
+    _max_catchup = int(params.get("machine", {}).get("max_catchup_ticks", 20))
+    return _world
+
+
+def world():
+    """The Actuator behind this module (tests read and steer the physics through it)."""
+    if _world is None:
+        raise RuntimeError("boards.sim.machine.configure(board) was not called")
+    return _world
+
+
+def _label(pin):
+    return pin.id if isinstance(pin, Pin) else pin
+
+
+class Pin:
+    IN = 0
+    OUT = 1
+    PULL_UP = 1
+    PULL_DOWN = 2
+
+    def __init__(self, id, mode=-1, pull=None, value=None):
+        self.id = id
+        self.mode = mode
+        self._value = 0 if value is None else (1 if value else 0)
+        _pins[id] = self
+
+    def value(self, v=None):
+        if v is None:
+            return self._value
+        self._value = 1 if v else 0
+
+    def on(self):
+        self._value = 1
+
+    def off(self):
+        self._value = 0
+
+    def __call__(self, v=None):
+        return self.value(v)
+
+
+class ADC:
+    def __init__(self, pin, *args, **kwargs):
+        label = _label(pin)
+        world()
+        pins = _board["adc_pins"]
+        name = None
+        for channel, lab in pins.items():
+            if lab == label:
+                name = channel
+        if name is None or name not in CHANNELS:
+            raise ValueError("pin %r is not an ADC pin of board %s" % (label, _board["name"]))
+        self.channel = name
+        self._i = CHANNELS.index(name)
+        self._w = _world
+
+    def read_u16(self):
+        return self._w.read_u16_index(self._i)
+
+
+class PWM:
+    def __init__(self, pin, freq=1000, duty_u16=0, **kwargs):
+        self.pin = _label(pin)
+        self._freq = freq
+        self._duty = 0
+        self.duty_u16(duty_u16)
+        _pwms[self.pin] = self
+
+    def duty_u16(self, value=None):
+        if value is None:
+            return self._duty
+        if value < 0 or value > 65535:
+            raise ValueError("duty_u16 must be 0..65535")
+        self._duty = value
+
+    def freq(self, value=None):
+        if value is None:
+            return self._freq
+        self._freq = value
+
+    def init(self, freq=None, duty_u16=None, **kwargs):
+        if freq is not None:
+            self._freq = freq
+        if duty_u16 is not None:
+            self.duty_u16(duty_u16)
+
+    def deinit(self):
+        self._duty = 0
+
+
+class Timer:
+    ONE_SHOT = 0
+    PERIODIC = 1
+
+    def __init__(self, id=-1, **kwargs):
+        self.id = id
+        self.callback = None
+        self.period_s = 0.0
+        self.period_us = 0
+        self.mode = Timer.PERIODIC
+        if kwargs:
+            self.init(**kwargs)
+
+    def init(self, freq=None, period=None, mode=1, callback=None, hard=None, **kwargs):
+        global _timer, _next_due
+        if freq is None:
+            freq = 1000.0 / period if period else _board.get("loop_hz", 1000)
+        self.period_s = 1.0 / freq
+        self.period_us = int(1000000 // freq)
+        self.mode = mode
+        self.callback = callback
+        _timer = self
+        _next_due = _ticks_add(_ticks_us(), self.period_us)
+
+    def deinit(self):
+        global _timer
+        self.callback = None
+        if _timer is self:
+            _timer = None
+
+
+def _duty(label):
+    p = _pwms.get(label)
+    return p._duty if p is not None else 0
+
+
+def motor_voltage():
+    """Voltage across the motor from the present PWM duties and pin levels."""
+    supply = float(_board["supply_volts"])
+    mp = _board["motor_pins"]
+    if _board["driver"] == "two_pwm":
+        return supply * (_duty(mp["in1"]) - _duty(mp["in2"])) / 65535.0
+    if _board["driver"] == "pwm_dir":
+        d = _pins.get(mp["dir"])
+        sign = 1.0 if (d is not None and d._value) else -1.0
+        return sign * supply * _duty(mp["pwm"]) / 65535.0
+    raise ValueError("unknown driver %r" % _board["driver"])
+
+
+def _tick():
+    global ticks
+    w = _world
+    w.set_motor_voltage(motor_voltage())
+    t = _timer
+    w.advance(t.period_s if t is not None else 1.0 / _board.get("loop_hz", 1000))
+    ticks += 1
+    if t is not None and t.callback is not None:
+        cb = t.callback
+        if t.mode == Timer.ONE_SHOT:
+            t.deinit()
+        cb(t)
+
+
+def run_ticks(n):
+    """Advance physics by n timer periods, firing the timer callback after each."""
+    world()
+    i = 0
+    while i < n:
+        _tick()
+        i += 1
+    return n
+
+
+def idle():
+    """Run every tick that is due by the wall clock; return how many ran."""
+    global _next_due, skipped_ticks
+    t = _timer
+    if t is None:
+        return 0
+    now = _ticks_us()
+    late = _ticks_diff(now, _next_due)
+    if late < 0:
+        return 0
+    n = late // t.period_us + 1
+    if n > _max_catchup:
+        skipped_ticks += n - _max_catchup
+        n = _max_catchup
+        _next_due = _ticks_add(now, t.period_us)
+    else:
+        _next_due = _ticks_add(_next_due, n * t.period_us)
+    run_ticks(n)
+    return n
+
+
+def unique_id():
+    return b"LSEA-SIM"
+
+
+def reset_cause():
+    return 0
+
+
+def freq():
+    return 125000000
+
+
+def disable_irq():
+    return 0
+
+
+def enable_irq(state=0):
+    pass
