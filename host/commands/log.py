@@ -1,0 +1,36 @@
+"""`host log`: stream telemetry to a CSV file with progress; Ctrl-C ends it with a complete file."""
+
+import sys
+
+from host.board_client import add_port_arguments, open_board
+from host.errors import UserError
+from host.telemetry_log import record
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("log", help="record telemetry to CSV (Ctrl-C ends cleanly)")
+    add_port_arguments(p)
+    p.add_argument("--out", required=True, help="CSV file to write (columns: firmware.telemetry.FIELDS)")
+    p.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
+    p.add_argument("--rate", type=int, default=1000, metavar="HZ", help="telemetry rate, Hz (default 1000, at most the board's loop rate)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    if args.rate <= 0:
+        raise UserError("--rate must be > 0")
+    if args.seconds is not None and args.seconds <= 0:
+        raise UserError("--seconds must be > 0")
+
+    def progress(s):
+        sys.stderr.write("\r%8d samples  %7.1f/s  lost frames %d  board drops %d " % (s.samples, s.rate, s.lost_frames, s.board_dropped))
+        sys.stderr.flush()
+
+    with open_board(args.port, args.board, args.calibration) as board:
+        try:
+            summary = record(board, args.out, args.seconds, args.rate, progress=progress)
+        except KeyboardInterrupt:
+            raise
+    sys.stderr.write("\n")
+    print("%s: %s" % (args.out, summary.line()))
+    return 0

@@ -1,0 +1,41 @@
+"""`host move --to MM`: closed-loop position move of the output block, then motor off."""
+
+import sys
+
+from host.board_client import add_port_arguments, open_board, settle
+from host.errors import UserError
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("move", help="move the output block to a position (closed loop)")
+    add_port_arguments(p)
+    p.add_argument("--to", type=float, required=True, metavar="MM", help="target position of the output block, mm (0-60)")
+    p.add_argument("--tolerance", type=float, default=0.2, metavar="MM", help="settled when within this, mm (default 0.2)")
+    p.add_argument("--timeout", type=float, default=15.0, metavar="S", help="give up after S seconds (default 15)")
+    p.add_argument("--hold", action="store_true", help="leave position mode on at the end (the firmware stops the motor "
+                   "once heartbeats stop, after host_timeout_ms)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    if not 0.0 <= args.to <= 60.0:
+        raise UserError("--to must be within the 0-60 mm stroke")
+    target = int(round(args.to * 1000))
+
+    def progress(value, seconds):
+        sys.stderr.write("\r%6.2f s  D2 %8.3f mm  (target %.3f mm)" % (seconds, value / 1000, args.to))
+        sys.stderr.flush()
+
+    with open_board(args.port, args.board, args.calibration, require_calibration=True) as board:
+        try:
+            ok, value, seconds = settle(board, "position", target, "d2_um", int(args.tolerance * 1000), args.timeout, progress=progress)
+        finally:
+            if not args.hold:
+                board.call("stop")
+        sys.stderr.write("\n")
+        status = board.call("status")
+    if value is None:
+        raise UserError("no telemetry from the board during the move")
+    print("%s at %.3f mm (target %.3f mm) after %.2f s%s" % ("reached" if ok else "NOT settled", value / 1000, args.to,
+          seconds, "; faults: " + ", ".join(status["faults"]) if status.get("faults") else ""))
+    return 0 if ok else 1

@@ -1,0 +1,26 @@
+"""`host plot run.csv`: positions, deformation, force, duty and targets of a logged run."""
+
+from pathlib import Path
+
+from host.errors import UserError
+from host.telemetry_plot import plot
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("plot", help="plot a telemetry CSV from host log")
+    p.add_argument("csv", help="the CSV written by host log")
+    p.add_argument("--out", default=None, help="PNG to write (default: beside the CSV)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    src = Path(args.csv)
+    if not src.is_file():
+        raise UserError("no such file: %s" % src)
+    out = Path(args.out) if args.out else src.with_suffix(".png")
+    try:
+        plot(src, out)
+    except (ValueError, KeyError) as exc:
+        raise UserError("cannot plot %s: %s" % (src, exc))
+    print(out)
+    return 0
