@@ -60,19 +60,35 @@ class App:
         # The motor first, so that whatever fails later at boot, the bridge is already off.
         self.motor = Motor(self.machine, self.board)
         self.sampler = Sampler(self.machine, self.board)
-        self.calibration, self.calibration_error = _load_calibration(calibration_path)
-        meas = None
-        if self.calibration is not None:
-            try:
-                meas = Measurement(self.calibration)
-            except ValueError as exc:
-                self.calibration_error = str(exc)
         self.telemetry = Ring(ring_records)
         self.safety = Safety(self.board["loop_hz"], (1 << self.board["adc_bits"]) - 1)
-        self.ctrl = Controller(self.sampler, meas, self.motor, self.telemetry, self.safety, self.board["loop_hz"])
+        self.ctrl = Controller(self.sampler, None, self.motor, self.telemetry, self.safety, self.board["loop_hz"])
+        cal, why = _load_calibration(calibration_path)
+        self.calibration = None
+        self.calibration_error = why
+        if cal is not None:
+            self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
         self._timer = None
         self._quit = False
+
+    def set_calibration(self, cal):
+        """Use a loaded Calibration (or None for raw readings only). Goes idle first."""
+        self.stop()
+        self.ctrl.meas = None
+        self.calibration = None
+        if cal is None:
+            self.calibration_error = "no calibration loaded"
+            return
+        try:
+            meas = Measurement(cal)
+        except (ValueError, TypeError, AttributeError) as exc:
+            self.calibration_error = "calibration unusable: %s" % (exc,)
+            return
+        meas.update(self.sampler.raw1, self.sampler.raw2)
+        self.calibration = cal
+        self.calibration_error = None
+        self.ctrl.meas = meas
 
     # --- commands (each one also counts as hearing from the host) ---------------------------
     def status(self):

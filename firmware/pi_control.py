@@ -54,12 +54,16 @@ class PI:
             e = E_MAX
         elif e < -E_MAX:
             e = -E_MAX
-        # Anti-windup (conditional integration): while the output is saturated, do not integrate
-        # an error that pushes further into the same limit.
-        if not ((self.saturated > 0 and e > 0) or (self.saturated < 0 and e < 0)):
+        p = (kp * e) >> Q
+        # Anti-windup (conditional integration): do not integrate an error that pushes further
+        # into a limit the output is already at, whether this step's output limit or (flag from
+        # applied()) the stroke and slew limits downstream.
+        u = p + (self.integ >> Q)
+        push = 1 if (u >= out_limit or self.saturated > 0) else (-1 if (u <= -out_limit or self.saturated < 0) else 0)
+        if not ((push > 0 and e > 0) or (push < 0 and e < 0)):
             lim = int_limit << Q
             self.integ = clamp(self.integ + ((ki * e) >> Q), -lim, lim)
-        u = ((kp * e) >> Q) + (self.integ >> Q)
+            u = p + (self.integ >> Q)
         if u >= out_limit:
             u = out_limit
             self.saturated = 1

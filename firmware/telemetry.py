@@ -45,7 +45,7 @@ class Ring:
         self.tail = 0  # records consumed (masked); only the reader changes it
         self.dropped = 0
         self.every = 0
-        self._countdown = 1
+        self._countdown = 0
 
     def clear(self):
         self.tail = self.head
@@ -55,10 +55,10 @@ class Ring:
         """Called once per step by the writer: True when this step's record should be kept."""
         if self.every <= 0:
             return False
-        self._countdown -= 1
-        if self._countdown > 0:
+        self._countdown += 1
+        if self._countdown < self.every:
             return False
-        self._countdown = self.every
+        self._countdown = 0
         return True
 
     def write_record(self, t_us, raw1, raw2, raw_ref, d1, d2, defl, force, target, duty, mode, faults):

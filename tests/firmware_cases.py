@@ -1,0 +1,348 @@
+"""Firmware test cases written once and run under both CPython (in-process) and MicroPython.
+
+Each case takes plain data (a JSON file written by the CPython test: ADC codes recorded from the
+simulated actuator and a calibration made from it) and raises AssertionError on failure; it
+returns a small dict of figures that the CPython test also checks. Run under MicroPython with
+the tests directory on MICROPYPATH: `import firmware_cases; firmware_cases.case_x(...)`.
+"""
+
+import gc
+import json
+from array import array
+
+from fake_hardware import ReplayMachine
+
+try:
+    import micropython
+except ImportError:
+    micropython = None
+
+MODULES = (
+    "hal", "board_config", "sampler", "measurement", "pi_control", "motor", "safety",
+    "telemetry", "controller", "app",
+)
+
+
+class Cal:
+    """The shape of firmware.calibration.Calibration, filled from the test's data."""
+
+    def __init__(self, d):
+        self.pot1 = (d["pot1"][0], array("i", d["pot1"][1]))
+        self.pot2 = (d["pot2"][0], array("i", d["pot2"][1]))
+        self.df = array("i", d["df"]) if d.get("df") else None
+        self.force = array("i", d["force"]) if d.get("force") else None
+        self.force_inverse = array("i", d["force_inverse"]) if d.get("force_inverse") else None
+        self.crc = 12345
+        self.board = "sim"
+        self.version = 1
+
+
+def load(path):
+    with open(path) as f:
+        return json.load(f)
+
+
+def make_app(data, with_cal=True, board_path="boards/sim.json"):
+    from firmware.app import App
+
+    with open(board_path) as f:
+        board = json.load(f)
+    codes = {}
+    for name, pin in board["adc_pins"].items():
+        if name in data["codes"]:
+            codes[pin] = data["codes"][name]
+    machine = ReplayMachine(codes)
+    app = App(board_path, None, machine=machine)
+    if with_cal:
+        app.set_calibration(Cal(data["cal"]))
+    return app, machine
+
+
+def pwm_duties(app):
+    m = app.motor
+    return [p.duty_u16() for p in (m.pwm_a, m.pwm_b) if p is not None]
+
+
+def case_imports():
+    import firmware
+
+    names = []
+    for name in MODULES:
+        mod = __import__("firmware." + name)
+        assert getattr(firmware, name) is not None
+        names.append(name)
+    return {"modules": names}
+
+
+def _run_steps(step, n):
+    i = 0
+    while i < n:
+        step()
+        i += 1
+
+
+def case_heap_lock(path, mode, target, n=10000):
+    """n control steps in `mode` with the heap locked: no MemoryError, no allocation."""
+    data = load(path)
+    app, _ = make_app(data, with_cal=(mode in ("position", "force")))
+    app.set_param("host_timeout_ms", 600000)  # the watchdog runs, but must not stop this run
+    app.set_stream(100)
+    app.set_mode(mode)
+    app.set_target(target)
+    _run_steps(app.step, 50)  # first calls settle attribute caches outside the lock
+    gc.collect()
+    before = gc.mem_alloc() if hasattr(gc, "mem_alloc") else 0
+    locked = micropython is not None and hasattr(micropython, "heap_lock")
+    if locked:
+        micropython.heap_lock()
+    try:
+        _run_steps(app.step, n)
+    finally:
+        if locked:
+            micropython.heap_unlock()
+    after = gc.mem_alloc() if hasattr(gc, "mem_alloc") else 0
+    st = app.status()
+    assert st["faults"] == [], st
+    assert st["mode"] == mode, st
+    assert app.ctrl.steps == n + 50
+    if mode != "idle":
+        assert app.ctrl.duty != 0, "the loop never drove the motor"
+    assert app.telemetry.available() > 0
+    return {"locked": locked, "before": before, "after": after, "duty": app.ctrl.duty}
+
+
+def case_rail_fault(path, pot):
+    """A wiper lift on `pot` stops the motor within one control period and names the pot."""
+    data = load(path)
+    app, machine = make_app(data)
+    app.set_mode("open_loop")
+    app.set_target(4000)
+    _run_steps(app.step, 100)
+    assert app.ctrl.duty == 4000 and max(pwm_duties(app)) > 0
+    pin = app.board["adc_pins"][pot]
+    adc = machine.adcs[pin]
+    machine.rail(pin, adc.i, 65535)  # every read from the next step on is at the top rail
+    app.step()
+    st = app.status()
+    assert pwm_duties(app) == [0, 0], pwm_duties(app)
+    assert st["mode"] == "idle" and st["faults"] == ["rail_" + pot], st
+    assert pot in st["last_fault"] and "4095" in st["last_fault"], st["last_fault"]
+    try:
+        app.set_mode("open_loop")
+        raise AssertionError("a latched fault must refuse the motor")
+    except ValueError as exc:
+        assert "reset" in str(exc)
+    return {"fault": st["last_fault"]}
+
+
+def case_host_timeout(path):
+    """No command for host_timeout_ms stops the motor; a heartbeat in time keeps it running."""
+    data = load(path)
+    app, _ = make_app(data)
+    app.set_param("host_timeout_ms", 50)  # 50 steps at 1 kHz
+    app.set_mode("position")
+    app.set_target(app.ctrl.meas.d2 + 5000)
+    _run_steps(app.step, 40)
+    app.heartbeat()
+    _run_steps(app.step, 40)
+    assert app.status()["mode"] == "position" and app.ctrl.duty != 0
+    _run_steps(app.step, 9)  # 49 steps of silence
+    assert app.status()["mode"] == "position"
+    app.step()  # the 50th
+    st = app.status()
+    assert st["mode"] == "idle" and st["faults"] == ["host_timeout"], st
+    assert pwm_duties(app) == [0, 0]
+    return {"fault": st["last_fault"]}
+
+
+class BrokenADC:
+    def read_u16(self):
+        raise OSError(5)  # what a failing peripheral raises on a board
+
+
+def case_step_exception(path):
+    data = load(path)
+    app, _ = make_app(data)
+    app.set_mode("open_loop")
+    app.set_target(-3000)
+    _run_steps(app.step, 100)
+    assert max(pwm_duties(app)) > 0
+    app.sampler.adc2 = BrokenADC()
+    app.step()  # must not raise: a hard IRQ cannot propagate it
+    st = app.status()
+    assert pwm_duties(app) == [0, 0]
+    assert st["mode"] == "idle" and "step_exception" in st["faults"], st
+    assert "OSError" in st["last_fault"], st["last_fault"]
+    return {"fault": st["last_fault"]}
+
+
+class InterruptingLink:
+    """Runs the timer like time passing, then Ctrl-C arrives while the motor is driven."""
+
+    def __init__(self, app, ticks):
+        self.app = app
+        self.ticks = ticks
+        self.polls = 0
+        self.duty_seen = 0
+
+    def poll(self):
+        self.polls += 1
+        self.app._timer.fire(10)
+        self.app.heartbeat()
+        self.duty_seen = max(self.duty_seen, max(pwm_duties(self.app)))
+        if self.polls * 10 >= self.ticks:
+            raise KeyboardInterrupt
+
+
+def case_keyboard_interrupt(path):
+    data = load(path)
+    app, _ = make_app(data)
+    app.set_mode("open_loop")
+    app.set_target(5000)
+    link = InterruptingLink(app, 200)
+    try:
+        app.run(link)
+        raise AssertionError("run() swallowed KeyboardInterrupt")
+    except KeyboardInterrupt:
+        pass
+    assert link.duty_seen > 0
+    assert pwm_duties(app) == [0, 0]
+    assert app._timer is None
+    st = app.status()
+    assert st["mode"] == "idle" and "interrupted" in st["faults"], st
+    return {"duty_seen": link.duty_seen}
+
+
+def case_refused_without_calibration(path):
+    data = load(path)
+    app, _ = make_app(data, with_cal=False)
+    for mode in ("position", "force"):
+        try:
+            app.set_mode(mode)
+            raise AssertionError("closed loop accepted without calibration")
+        except ValueError as exc:
+            assert "calibration" in str(exc), str(exc)
+    st = app.status()
+    assert st["calibration_crc"] is None and st["calibration_error"], st
+    app.set_mode("open_loop")  # raw readings and open loop still work
+    app.set_target(2000)
+    _run_steps(app.step, 100)
+    assert app.ctrl.duty == 2000 and app.sampler.raw1 > 0
+    # a calibration without the force steps: position works, force is refused with the reason
+    cal = dict(data["cal"], df=None, force=None, force_inverse=None)
+    app.set_calibration(Cal(cal))
+    app.set_mode("position")
+    try:
+        app.set_mode("force")
+        raise AssertionError("force mode accepted without a force calibration")
+    except ValueError as exc:
+        assert "Df" in str(exc) or "force" in str(exc), str(exc)
+    return {"error": st["calibration_error"]}
+
+
+def case_slew(path):
+    """Open-loop step 0 -> +10000 -> -10000: the duty moves at most `slew` per step."""
+    data = load(path)
+    app, _ = make_app(data)
+    app.set_param("slew", 37)
+    app.set_param("stroke_min_um", -65535)  # this case is about the slew limit alone
+    app.set_param("stroke_max_um", 65535)
+    app.set_mode("open_loop")
+    app.set_target(10000)
+    prev = 0
+    steps = 0
+    while app.ctrl.duty != 10000:
+        app.step()
+        assert abs(app.ctrl.duty - prev) <= 37
+        prev = app.ctrl.duty
+        steps += 1
+        assert steps < 1000
+    app.set_target(-10000)
+    while app.ctrl.duty != -10000:
+        app.step()
+        assert abs(app.ctrl.duty - prev) <= 37
+        prev = app.ctrl.duty
+        steps += 1
+        assert steps < 2000
+    assert pwm_duties(app) == [0, 65535]
+    return {"steps": steps}
+
+
+def case_anti_windup():
+    """PI saturated for 5 s: the integral stays bounded (none while saturated) and the output
+    leaves the limit on the first step the error changes sign; a PI without anti-windup would
+    take ~int_limit worth of steps."""
+    from firmware.pi_control import PI
+
+    pi = PI()
+    kp, ki, out_limit, int_limit = 256, 64, 3000, 2000
+    pi.update(20, kp, ki, out_limit, int_limit)  # a small error first: some integral builds
+    integ0 = pi.integ
+    i = 0
+    while i < 5000:
+        u = pi.update(30000, kp, ki, out_limit, int_limit)
+        assert u == out_limit
+        assert abs(pi.integ) <= int_limit << 8
+        i += 1
+    assert pi.integ == integ0, (pi.integ, integ0)  # no integration while saturated
+    u = pi.update(-20, kp, ki, out_limit, int_limit)
+    assert u < 0, u  # recovers at once: no wound-up integral to unwind
+    # without saturation the integral does accumulate, and is clamped
+    pi.reset()
+    i = 0
+    while i < 20000:
+        pi.update(1000, 0, ki, out_limit, int_limit)
+        i += 1
+    assert pi.integ == int_limit << 8
+    return {"integ": pi.integ}
+
+
+def case_motor_wiring():
+    """two_pwm (pico, DRV8833) and pwm_dir (esp32, TB6612) map a signed duty to the pins."""
+    from firmware.board_config import load_board
+    from firmware.motor import Motor
+
+    out = {}
+    b = load_board("boards/pico.json")
+    m = Motor(ReplayMachine({}), b)
+    m.set(2500)
+    assert (m.pwm_a.duty_u16(), m.pwm_b.duty_u16()) == (16383, 0)
+    m.set(-10000)
+    assert (m.pwm_a.duty_u16(), m.pwm_b.duty_u16()) == (0, 65535)
+    m.off()
+    assert (m.pwm_a.duty_u16(), m.pwm_b.duty_u16()) == (0, 0)
+    b = load_board("boards/esp32_devkitc.json")
+    m = Motor(ReplayMachine({}), b)
+    m.set(5000)
+    assert (m.pwm_a.duty_u16(), m.dir.value(), m.dir_n.value()) == (32767, 1, 0)
+    m.set(-5000)
+    assert (m.pwm_a.duty_u16(), m.dir.value(), m.dir_n.value()) == (32767, 0, 1)
+    m.set(20000)  # clamped
+    assert m.pwm_a.duty_u16() == 65535 and m.duty == 10000
+    m.off()
+    assert m.pwm_a.duty_u16() == 0
+    out["ok"] = True
+    return out
+
+
+def case_ring():
+    from firmware.telemetry import RECORD_WORDS, Ring
+
+    r = Ring(4)
+    r.every = 1
+    dst = array("i", [0] * RECORD_WORDS)
+    assert not r.read_into(dst)
+    i = 0
+    while i < 6:
+        assert r.due()
+        r.write_record(i, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11)
+        i += 1
+    got = []
+    while r.read_into(dst):
+        got.append(dst[0])
+        assert list(dst[1:]) == list(range(1, 12))
+    assert got == [2, 3, 4, 5] and r.dropped == 2, (got, r.dropped)
+    r.every = 3
+    kept = [r.due() for _ in range(9)]
+    assert kept == [False, False, True] * 3, kept
+    return {"dropped": r.dropped}

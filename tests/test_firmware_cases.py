@@ -1,0 +1,102 @@
+"""The shared firmware cases (tests/firmware_cases.py), each run under CPython and MicroPython."""
+
+import json
+import sys
+
+import pytest
+
+from micropython_runner import REPO, run_micropython
+
+import fake_hardware
+import firmware_cases
+
+TESTS = REPO / "tests"
+
+
+@pytest.fixture(scope="module")
+def data_path(tmp_path_factory):
+    board = fake_hardware.sim_board()
+    data = {
+        "codes": fake_hardware.record_codes(board, steps=600, duty=3000),
+        "cal": fake_hardware.model_calibration(board),
+    }
+    path = tmp_path_factory.mktemp("fw") / "data.json"
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
+def on_micropython(call):
+    """Run `firmware_cases.<call>` under the real MicroPython; return its result dict."""
+    proc = run_micropython(
+        "import json, firmware_cases\nprint(json.dumps(firmware_cases.%s))\n" % call,
+        extra_paths=[TESTS],
+    )
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def both(call, data_path=None):
+    call = call.replace("PATH", repr(data_path))
+    here = eval("firmware_cases." + call)
+    there = on_micropython(call)
+    return here, there
+
+
+def test_every_module_imports_on_both():
+    here, there = both("case_imports()")
+    assert here["modules"] == there["modules"] == list(firmware_cases.MODULES)
+
+
+@pytest.mark.parametrize(
+    "mode,target", [("idle", 0), ("open_loop", 2500), ("position", 20000), ("force", 3000)]
+)
+def test_step_allocates_nothing_under_heap_lock(data_path, mode, target):
+    here, there = both("case_heap_lock(PATH, %r, %d)" % (mode, target), data_path)
+    assert there["locked"] is True  # the real interpreter really locked the heap
+    assert there["before"] == there["after"], there
+    assert here["duty"] == there["duty"]  # same integers on both interpreters
+
+
+@pytest.mark.parametrize("pot", ["pot1", "pot2"])
+def test_wiper_lift_stops_motor_within_one_period(data_path, pot):
+    here, there = both("case_rail_fault(PATH, %r)" % pot, data_path)
+    assert here == there
+
+
+def test_host_silence_stops_motor(data_path):
+    here, there = both("case_host_timeout(PATH)", data_path)
+    assert "50 ms" in here["fault"] and here == there
+
+
+def test_exception_in_step_leaves_pwm_zero(data_path):
+    here, there = both("case_step_exception(PATH)", data_path)
+    assert "OSError" in here["fault"] and "OSError" in there["fault"]
+
+
+def test_keyboard_interrupt_in_run_leaves_pwm_zero(data_path):
+    here, there = both("case_keyboard_interrupt(PATH)", data_path)
+    assert here["duty_seen"] > 0 and here == there
+
+
+def test_closed_loop_refused_without_calibration(data_path):
+    here, there = both("case_refused_without_calibration(PATH)", data_path)
+    assert here == there
+
+
+def test_slew_limit(data_path):
+    here, there = both("case_slew(PATH)", data_path)
+    assert here == there
+
+
+def test_pi_anti_windup():
+    here, there = both("case_anti_windup()")
+    assert here == there
+
+
+def test_motor_wiring_two_drivers():
+    here, there = both("case_motor_wiring()")
+    assert here == there
+
+
+def test_telemetry_ring():
+    here, there = both("case_ring()")
+    assert here == there
