@@ -305,9 +305,10 @@ class Actuator:
 
 
 def _q8(fraction, full_q8):
-    """Fraction of full scale -> code in Q8 with +0.5 LSB so that >> 8 rounds; clamped rails."""
-    if fraction <= 0.0:
-        return 128
-    if fraction >= 1.0:
-        return int(full_q8) + 128
+    """Fraction of full scale -> code in Q8 with +0.5 LSB so that >> 8 rounds. An input beyond
+    a rail saturates there (read_u16_index clamps); the clamp here only bounds the integer."""
+    if fraction < -1.0:
+        fraction = -1.0
+    elif fraction > 2.0:
+        fraction = 2.0
     return int(fraction * full_q8 + 128.0)

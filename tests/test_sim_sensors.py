@@ -1,0 +1,155 @@
+"""Simulated sensors: pot knee curves, assembly error Df, ADC noise, read_u16 scaling, rails,
+wiper-lift faults and seeds; every case run identically on CPython and MicroPython."""
+
+import json
+import statistics
+
+import pytest
+from test_sim_support import REPO, run_both
+
+BOARD = json.loads((REPO / "boards" / "sim.json").read_text())
+POTS = BOARD["actuator"]["pots"]
+
+
+def test_each_pot_curve_has_two_knees_with_the_configured_slopes():
+    r = run_both("""
+out = {}
+for name in ('pot1', 'pot2'):
+    a = Actuator(PARAMS, 1)
+    p = a.pots[0 if name == 'pot1' else 1]
+    us = [i / 2000 for i in range(2001)]
+    out[name] = [p.curve(u) for u in us]
+emit(out)
+""")
+    for name in ("pot1", "pot2"):
+        cfg = POTS[name]
+        (u0, g0), (u1, g1), (u2, g2), (u3, g3) = cfg["curve"]
+        h = cfg["knee_halfwidth"]
+        slopes = [(g1 - g0) / (u1 - u0), (g2 - g1) / (u2 - u1), (g3 - g2) / (u3 - u2)]
+        assert slopes[1] > 2 * slopes[0] and slopes[1] > 2 * slopes[2]  # real knees
+        g = r[name]
+        du = 1 / 2000
+        d = [(b - a) / du for a, b in zip(g, g[1:])]
+        assert min(d) > 0  # strictly increasing: invertible
+        for i, s in enumerate(d):
+            u = (i + 0.5) * du
+            if u < u1 - h:
+                assert s == pytest.approx(slopes[0], rel=1e-6)
+            elif u1 + h < u < u2 - h:
+                assert s == pytest.approx(slopes[1], rel=1e-6)
+            elif u > u2 + h:
+                assert s == pytest.approx(slopes[2], rel=1e-6)
+        # Smooth (C1): the slope never jumps between neighbouring samples.
+        step = max(abs(b - a) for a, b in zip(d, d[1:]))
+        assert step < 1.5 * max(abs(slopes[1] - slopes[0]), abs(slopes[2] - slopes[1])) * du / (2 * h)
+        assert g[0] == g0 and g[-1] == g3
+        assert g[int(u1 * 2000)] == pytest.approx(g1, abs=0.3 * h * abs(slopes[1] - slopes[0]))
+
+
+def test_assembly_error_is_flat_mid_stroke_and_grows_toward_the_ends():
+    r = run_both("""
+a = Actuator(PARAMS, 1)
+xs = [i * 0.5 for i in range(121)]
+df = [a.pots[0].wiper_mm(x) - a.pots[1].wiper_mm(x) for x in xs]
+# The same Df seen through the ADC: the reference rides on each pot's wiper in turn.
+seen = []
+for x in (2.0, 30.0, 58.0):
+    a.place(x)
+    a.set_reference('pot1')
+    c1 = sum(a.adc_code('reference') for i in range(64))
+    a.set_reference('pot2')
+    c2 = sum(a.adc_code('reference') for i in range(64))
+    seen.append((c1 - c2) / 64)
+emit({'df': df, 'seen': seen})
+""")
+    df = r["df"]
+    mid = [v for i, v in enumerate(df) if 20 <= i * 0.5 <= 40]
+    assert max(abs(v) for v in mid) < 0.2
+    assert -6 < df[0] < -2 and -6 < df[-1] < -2  # a few mm at both ends, like SPEC section 3
+    # Grows monotonically from the flat middle toward each end.
+    left = df[: 20 * 2 + 1]
+    right = df[40 * 2:]
+    assert all(a <= b + 1e-12 for a, b in zip(left, left[1:]))
+    assert all(a >= b - 1e-12 for a, b in zip(right, right[1:]))
+    # Smooth: bounded second differences (no steps or kinks).
+    second = [abs(a - 2 * b + c) for a, b, c in zip(df, df[1:], df[2:])]
+    assert max(second) < 0.05
+    ref = BOARD["actuator"]["reference"]
+    mm_per_code = ref["span_mm"] / 4095
+    for x, seen in zip((2.0, 30.0, 58.0), r["seen"]):
+        assert seen * mm_per_code == pytest.approx(df[int(x * 2)], abs=3 * mm_per_code)
+
+
+def test_adc_noise_has_the_configured_standard_deviation_and_no_bias():
+    r = run_both("""
+a = Actuator(PARAMS, 11)
+a.place(33.3)
+out = {}
+for name in ('pot1', 'pot2', 'reference', 'gauge'):
+    out[name] = [a.adc_code(name) for i in range(6000)]
+    out[name + '_true'] = a._base_q8[('pot1', 'pot2', 'reference', 'gauge').index(name)] / 256 - 0.5
+emit(out)
+""")
+    cfg = BOARD["actuator"]
+    sigmas = {"pot1": POTS["pot1"]["noise_lsb"], "pot2": POTS["pot2"]["noise_lsb"],
+              "reference": cfg["reference"]["noise_lsb"], "gauge": cfg["gauge"]["noise_lsb"]}
+    for name, sigma in sigmas.items():
+        codes = r[name]
+        # Rounding to whole codes adds the uniform quantisation variance 1/12 LSB^2.
+        expected = (sigma ** 2 + 1 / 12) ** 0.5
+        assert statistics.pstdev(codes) == pytest.approx(expected, rel=0.06), name
+        assert statistics.fmean(codes) == pytest.approx(r[name + "_true"], abs=0.08), name
+
+
+def test_read_u16_scaling_rails_and_wiper_lift():
+    r = run_both("""
+a = Actuator(PARAMS, 5)
+a.place(30.0)
+mid = [a.adc_u16('pot1') for i in range(50)]
+a.inject_fault('pot1', 'wiper_lift')
+lifted_high = [a.adc_u16('pot1') for i in range(5)]
+other = a.adc_u16('pot2')
+a.inject_fault('pot2', 'wiper_lift', rail='low')
+lifted_low = [a.adc_u16('pot2') for i in range(5)]
+a.clear_faults()
+healed = a.adc_u16('pot1')
+a.set_reference('nut')
+a.place(60.0, 2.0)  # nut at 62 mm, inside the reference's span
+ref_end = a.adc_code('reference')
+a.set_load('constant', force_n=0.0)
+a.gauge['zero_fraction'] = -0.5
+a.place(60.0)
+gauge_low = [a.adc_code('gauge') for i in range(5)]
+emit({'mid': mid, 'high': lifted_high, 'low': lifted_low, 'other': other, 'healed': healed,
+      'ref_end': ref_end, 'gauge_low': gauge_low})
+""")
+    for v in r["mid"]:
+        c = v >> 4
+        assert v == (c << 4) | (c >> 8)  # MicroPython's 12-bit to 16-bit scaling
+        assert 0 < c < 4095
+    assert r["high"] == [65535] * 5
+    assert r["low"] == [0] * 5
+    assert 0 < r["other"] < 65535 and 0 < r["healed"] < 65535
+    ref = BOARD["actuator"]["reference"]
+    assert r["ref_end"] == pytest.approx((62.0 - ref["zero_mm"]) / ref["span_mm"] * 4095, abs=3)
+    assert r["gauge_low"] == [0] * 5  # an input driven beyond the rail saturates at code 0
+
+
+def test_seed_makes_runs_repeatable_and_different_seeds_differ():
+    body = """
+out = []
+for seed in (1, 1, 2):
+    a = Actuator(PARAMS, seed)
+    a.set_motor_voltage(2.5)
+    codes = []
+    for i in range(200):
+        a.advance(0.001)
+        codes.append(a.adc_u16('pot1'))
+    out.append([codes, a.nut_mm])
+emit({'runs': out})
+"""
+    r = run_both(body)
+    (c1, x1), (c2, x2), (c3, x3) = r["runs"]
+    assert c1 == c2 and x1 == x2
+    assert c1 != c3
+    assert x1 == x3  # the seed changes sensor noise and gauge drift, not the mechanics
