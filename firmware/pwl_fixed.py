@@ -1,0 +1,43 @@
+"""A piecewise-linear calibration table in integer arithmetic, for the control step.
+
+`pwl(code, k)` turns an ADC code into a position in integer micrometres by binary search over
+the knot codes and integer interpolation between the two neighbouring knots, clamped to the end
+values outside the table. It serves the host's `lut` and `pwl` models and any curve tabulated
+densely (e.g. a BCM of degree > 3, whose integer form would not stay within 31 bits).
+
+k layout (a flat int sequence, array('i') on the board; written by host/fixed_export.py):
+
+    k[0]            N   number of knots (>= 2)
+    k[1]            S   input shift: the code is scaled to code << S (S = 16 - adc_bits)
+    k[2 : 2+N]          knot codes * 2**S (rounded), strictly increasing, within [0, 2**16]
+    k[2+N : 2+2N]       knot values in um
+
+Every segment satisfies (x[i+1] - x[i]) * |y[i+1] - y[i]| <= 2**30 - 2**15 (the exporter splits
+longer segments), so the interpolation product and its rounding offset stay within +-2**30.
+Rounding is floor(v + 1/2) via // (floor on both interpreters, also for negative v). The value
+at a knot is exactly the stored knot value, so a monotone table stays monotone.
+"""
+
+
+def pwl(code, k):
+    """Position in um of ADC `code` for the exported table `k` (layout above)."""
+    n = k[0]
+    x = code << k[1]
+    last = n + 1  # index of the last knot code
+    if x <= k[2]:
+        return k[2 + n]
+    if x >= k[last]:
+        return k[last + n]
+    lo = 2
+    hi = last
+    # invariant: k[lo] <= x < k[hi]
+    while hi - lo > 1:
+        mid = (lo + hi) >> 1
+        if k[mid] <= x:
+            lo = mid
+        else:
+            hi = mid
+    x0 = k[lo]
+    dx = k[hi] - x0
+    y0 = k[lo + n]
+    return y0 + ((x - x0) * (k[hi + n] - y0) + (dx >> 1)) // dx

@@ -1,0 +1,341 @@
+"""Export float calibrations to the firmware's integer forms, and prove each export is good.
+
+Every export returns a `FixedExport` (a list of ints, the `k` the firmware functions take) that
+also carries what was checked: `max_error` (largest |integer - float64| over every ADC code, or
+over a dense grid of the input range for polynomials), `bound` (the limit it had to meet) and
+`max_intermediate` (largest |value| any operation produced, measured by running the firmware
+function itself on `TrackedInt`s, so there is no second copy of the arithmetic to drift apart).
+An export that misses its bound, or whose intermediates exceed 2**30, raises ValueError with the
+reason, so a bad curve never reaches a board.
+
+Error bound for pot curves (bcm3, pwl, tables): half an ADC step of the curve's own span,
+`0.5 * (max f - min f) / 2**adc_bits` um over codes 0..2**adc_bits - 1; for a 60 mm pot on a
+12-bit ADC that is 60000 / 4096 / 2 = 7.32 um. Pass `max_error_um` to use another limit.
+"""
+
+import math
+
+import numpy as np
+
+from firmware import bcm_fixed, poly_fixed, pwl_fixed
+
+LIMIT = 2**30  # the 31-bit small-int range of a 32-bit MicroPython port
+UM_PER_MM = 1000.0
+WEIGHT_BITS = 20  # the largest bcm3 weight is 2**20 (see firmware/bcm_fixed.py)
+
+
+class FixedExport(list):
+    """The exported constants (a list of ints) plus the figures that justified them."""
+
+    def __init__(self, values, kind, max_error, bound, max_intermediate):
+        super().__init__(int(v) for v in values)
+        self.kind = kind
+        self.max_error = float(max_error)
+        self.bound = float(bound)
+        self.max_intermediate = int(max_intermediate)
+
+    def report(self):
+        return {
+            "kind": self.kind,
+            "max_error": self.max_error,
+            "bound": self.bound,
+            "max_intermediate": self.max_intermediate,
+            "max_intermediate_log2": math.log2(max(self.max_intermediate, 1)),
+        }
+
+
+class TrackedInt(int):
+    """An int whose arithmetic records the largest magnitude it produces (see `track`)."""
+
+    peak = 0
+
+    def _out(self, value):
+        value = int(value)
+        if abs(value) > TrackedInt.peak:
+            TrackedInt.peak = abs(value)
+        return TrackedInt(value)
+
+    def __add__(self, o):
+        return self._out(int(self) + int(o))
+
+    def __radd__(self, o):
+        return self._out(int(o) + int(self))
+
+    def __sub__(self, o):
+        return self._out(int(self) - int(o))
+
+    def __rsub__(self, o):
+        return self._out(int(o) - int(self))
+
+    def __mul__(self, o):
+        return self._out(int(self) * int(o))
+
+    def __rmul__(self, o):
+        return self._out(int(o) * int(self))
+
+    def __floordiv__(self, o):
+        return self._out(int(self) // int(o))
+
+    def __rfloordiv__(self, o):
+        return self._out(int(o) // int(self))
+
+    def __rshift__(self, o):
+        return self._out(int(self) >> int(o))
+
+    def __rrshift__(self, o):
+        return self._out(int(o) >> int(self))
+
+    def __lshift__(self, o):
+        return self._out(int(self) << int(o))
+
+    def __rlshift__(self, o):
+        return self._out(int(o) << int(self))
+
+    def __and__(self, o):
+        return self._out(int(self) & int(o))
+
+    def __rand__(self, o):
+        return self._out(int(o) & int(self))
+
+    def __neg__(self):
+        return self._out(-int(self))
+
+
+def track(func, inputs, k):
+    """Largest |intermediate| of the firmware function `func(x, k)` over all `inputs`."""
+    tk = [TrackedInt(v) for v in k]
+    TrackedInt.peak = max(abs(int(v)) for v in k)
+    for x in inputs:
+        TrackedInt.peak = max(TrackedInt.peak, abs(int(x)))
+        func(TrackedInt(int(x)), tk)
+    return TrackedInt.peak
+
+
+def _input_shift(adc_bits):
+    if not 1 <= int(adc_bits) <= 16:
+        raise ValueError("adc_bits must be 1..16 (inputs are scaled to 16 bits), got %r" % (adc_bits,))
+    return 16 - int(adc_bits)
+
+
+def _pot_bound(values_um, adc_bits, max_error_um):
+    if max_error_um is not None:
+        return float(max_error_um)
+    return 0.5 * float(np.max(values_um) - np.min(values_um)) / 2**adc_bits
+
+
+def _finish(kind, k, func, inputs, reference, bound, what, tracked=None):
+    got = np.array([func(int(x), k) for x in inputs], dtype=float)
+    err = float(np.max(np.abs(got - reference)))
+    peak = track(func, inputs if tracked is None else tracked, k)
+    if peak > LIMIT:
+        raise ValueError("%s: an intermediate reaches %d > 2**30 (would overflow a 32-bit board)" % (what, peak))
+    if not err <= bound:
+        raise ValueError("%s: integer form is %.3g off float64, over the bound %.3g" % (what, err, bound))
+    return FixedExport(k, kind, err, bound, peak)
+
+
+# ---------------------------------------------------------------- BCM-3
+
+
+def bcm_float(coefficients, x):
+    """The rational Bernstein curve of `coefficients` at x (float64, t clamped to [0, 1])."""
+    w = np.asarray(coefficients["weights"], dtype=float)
+    p = np.asarray(coefficients["handles"], dtype=float)
+    n = len(w) - 1
+    t = np.clip((np.asarray(x, dtype=float) - coefficients["lx"]) / coefficients["rx"], 0.0, 1.0)
+    basis = np.stack([math.comb(n, i) * t**i * (1.0 - t) ** (n - i) for i in range(n + 1)])
+    return (basis * (w * p)[:, None]).sum(axis=0) / (basis * w[:, None]).sum(axis=0)
+
+
+def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
+    """k for `firmware.bcm_fixed.bcm3` from a bcm coefficient dict (x in ADC codes, y in mm).
+
+    `unit_um` is how many um one unit of the handles is (1000 for mm). Raises ValueError when
+    the curve is not degree 3 or its integer form cannot meet the bound.
+    """
+    s = _input_shift(adc_bits)
+    w = [float(v) for v in coefficients["weights"]]
+    p = [float(v) * unit_um for v in coefficients["handles"]]
+    if len(w) != 4 or len(p) != 4:
+        raise ValueError("bcm3 needs degree 3 (4 weights and handles), got %d: export a table instead" % (len(w) - 1))
+    if not all(math.isfinite(v) and v > 0 for v in w):
+        raise ValueError("bcm weights must be positive and finite")
+    if not all(math.isfinite(v) for v in p):
+        raise ValueError("bcm handles must be finite")
+    lx = round(float(coefficients["lx"]) * 2**s)
+    rx = round(float(coefficients["rx"]) * 2**s)
+    if not 1 <= rx <= 2**16 or abs(lx) > 2**16:
+        raise ValueError("lx/rx outside the %d-bit ADC range (lx=%r, rx=%r)" % (adc_bits, coefficients["lx"], coefficients["rx"]))
+    wmax = max(w)
+    weights = [round(v * 2**WEIGHT_BITS / wmax) for v in w]
+    if min(weights) < 1:
+        raise ValueError("weight ratio %.0f too large for %d-bit weights" % (wmax / min(w), WEIGHT_BITS))
+    spread = max(p) - min(p)
+    h = 4
+    while h > 0 and (spread * 2**h > 2**21 or max(abs(v) for v in p) * 2**h > 2**29):
+        h -= 1
+    if spread * 2**h > 2**21 or max(abs(v) for v in p) * 2**h > 2**29:
+        raise ValueError("handle spread %.0f um too large (limit 2**21 um)" % spread)
+    k = [s, lx, rx, h, *weights, *(round(v * 2**h) for v in p)]
+    codes = np.arange(2**adc_bits)
+    reference = bcm_float(coefficients, codes) * unit_um
+    bound = _pot_bound(reference, adc_bits, max_error_um)
+    return _finish("bcm3", k, bcm_fixed.bcm3, codes, reference, bound, "bcm3")
+
+
+# ---------------------------------------------------------------- piecewise-linear tables
+
+SEGMENT_LIMIT = 2**30 - 2**15  # dx * |dy| per segment, leaves room for the rounding offset
+
+
+def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM, reference=None):
+    """k for `firmware.pwl_fixed.pwl` from knots (x in ADC codes increasing, y in mm).
+
+    Segments too long for the 31-bit interpolation product are split (exactly on the line).
+    `reference(codes) -> um` is what the table is checked against (default: the float
+    interpolation of the knots themselves, clamped at the ends).
+    """
+    s = _input_shift(adc_bits)
+    xs = np.asarray(knots_x, dtype=float)
+    ys = np.asarray(knots_y, dtype=float) * unit_um
+    if xs.ndim != 1 or len(xs) < 2 or len(xs) != len(ys):
+        raise ValueError("a table needs at least 2 knots with as many values as codes")
+    if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(ys))):
+        raise ValueError("table knots must be finite")
+    if np.any(np.diff(xs) <= 0):
+        raise ValueError("knot codes must be strictly increasing")
+    X = [round(v * 2**s) for v in xs]
+    if X[0] < 0 or X[-1] > 2**16 or any(b <= a for a, b in zip(X, X[1:])):
+        raise ValueError("knot codes must be distinct within 1/%d code and inside the ADC range" % 2**s)
+    Y = [round(v) for v in ys]
+    if max(abs(v) for v in Y) > 2**29:
+        raise ValueError("table values exceed 2**29 um")
+    # split segments whose interpolation product could leave 31 bits
+    outx, outy = [X[0]], [Y[0]]
+    for i in range(1, len(X)):
+        x0, y0, x1, y1 = outx[-1], outy[-1], X[i], Y[i]
+        pieces = 1
+        while -(-(x1 - x0) // pieces) * abs(y1 - y0) > SEGMENT_LIMIT:
+            pieces += 1
+        for j in range(1, pieces):
+            outx.append(x0 + (x1 - x0) * j // pieces)
+            outy.append(round(y0 + (y1 - y0) * (outx[-1] - x0) / (x1 - x0)))
+        outx.append(x1)
+        outy.append(y1)
+    k = [len(outx), s, *outx, *outy]
+    codes = np.arange(2**adc_bits)
+    ref = np.interp(codes, xs, ys) if reference is None else np.asarray(reference(codes), dtype=float)
+    bound = _pot_bound(ref, adc_bits, max_error_um)
+    return _finish("pwl", k, pwl_fixed.pwl, codes, ref, bound, "pwl table")
+
+
+def export_curve_table(f, adc_bits, n_points=None, max_error_um=None, unit_um=UM_PER_MM, x_range=None):
+    """A pwl table that samples the monotone curve `f` (a FitResult or any codes -> mm callable).
+
+    Knots are evenly spaced over `x_range` (default: f.x_range, else the whole ADC range) and the
+    table is checked against f at every code (f clamped to x_range, as the table is). With
+    n_points None, the smallest of 17, 33, 65, ... knots that meets the bound is used.
+    """
+    if x_range is None:
+        x_range = getattr(f, "x_range", None) or (0, 2**adc_bits - 1)
+    lo, hi = float(x_range[0]), float(x_range[1])
+    lo, hi = max(lo, 0.0), min(hi, float(2**adc_bits - 1))
+    if not hi > lo:
+        raise ValueError("empty input range %r" % (x_range,))
+
+    def reference(codes):
+        return np.asarray(f(np.clip(codes.astype(float), lo, hi)), dtype=float) * unit_um
+
+    tries = [n_points] if n_points else [2**m + 1 for m in range(4, adc_bits + 1)]
+    err = None
+    for n in tries:
+        n = int(min(n, math.floor(hi - lo) + 1)) if hi - lo >= 1 else 2
+        kx = np.linspace(lo, hi, max(n, 2))
+        ky = np.asarray(f(kx), dtype=float)
+        d = np.diff(ky)
+        if not (np.all(d >= 0) or np.all(d <= 0)):
+            raise ValueError("curve is not monotone over its range: a table of it cannot be trusted")
+        try:
+            return export_pwl(kx, ky, adc_bits, max_error_um, unit_um, reference=reference)
+        except ValueError as e:
+            err = e
+    raise ValueError("no table of up to %d points meets the bound: %s" % (tries[-1], err))
+
+
+def export_pot(fit, adc_bits, max_error_um=None):
+    """(kind, FixedExport) for a pot FitResult: bcm3 when possible, else the best table."""
+    c = fit.coefficients
+    if fit.model == "bcm" and len(c.get("weights", ())) == 4:
+        try:
+            return "bcm3", export_bcm3(c, adc_bits, max_error_um)
+        except ValueError:
+            pass
+    if fit.model in ("lut", "pwl"):
+        try:
+            return "pwl", export_pwl(c["knots_x"], c["knots_y"], adc_bits, max_error_um)
+        except ValueError:
+            pass
+    return "pwl", export_curve_table(fit, adc_bits, max_error_um=max_error_um)
+
+
+# ---------------------------------------------------------------- polynomials
+
+
+def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=None):
+    """k for `firmware.poly_fixed.poly` evaluating out_scale * P(x / in_scale) on integer x.
+
+    P has coefficients `coeffs_high_first` (numpy.polyval order) in its natural units, e.g.
+    Df_hat in mm of D1 in mm: in_scale = out_scale = 1000 gives um -> um. x_min, x_max are the
+    input range in P's natural units (mm here); the firmware clamps to it. The result is checked
+    on every integer input (or a 200,001-point grid of a wider range); `max_error` defaults to
+    max(1, 2**-13 * max |output|) output units.
+    """
+    a = np.asarray(coeffs_high_first, dtype=float)
+    if a.ndim != 1 or len(a) < 1 or not np.all(np.isfinite(a)):
+        raise ValueError("polynomial coefficients must be a non-empty list of finite numbers")
+    n = len(a) - 1
+    xlo, xhi = math.ceil(x_min * in_scale), math.floor(x_max * in_scale)
+    if not xhi >= xlo or max(abs(xlo), abs(xhi)) > 2**29:
+        raise ValueError("input range %r..%r is empty or beyond 2**29 units" % (x_min, x_max))
+    xc = (xlo + xhi) // 2
+    hw = max(xc - xlo, xhi - xc, 1)
+    # coefficients of q(u) = out_scale * P((u + xc) / in_scale), lowest first
+    shift = np.polynomial.Polynomial([xc / in_scale, 1.0 / in_scale])
+    q = (np.polynomial.Polynomial(a[::-1]) * out_scale)(shift).coef
+    q = np.concatenate([q, np.zeros(n + 1 - len(q))])
+    # Exponents: |R_j| = |r_j(u)| 2**E_j <= 2**29 and, for j >= 1, |R_j| * max(256, |uh|) <= 2**29
+    # (the firmware takes R_j * u in halves, u = uh * 2**8 + ul), where
+    # r_j(u) = sum_(i>=j) q_i u^(i-j) is the Horner accumulator. Up to 200,001 integer inputs
+    # the maxima are taken over every input the firmware can see (it clamps to the range);
+    # beyond, the bound sum |q_i| hw^(i-j) is used. The factor 2 to 2**30 absorbs rounding.
+    inputs = np.arange(xlo, xhi + 1) if xhi - xlo <= 200000 else None
+    lim = []
+    for j in range(n + 1):
+        if inputs is not None:
+            u = (inputs - xc).astype(float)
+            r = np.zeros_like(u)
+            for i in range(n, j - 1, -1):
+                r = r * u + q[i]
+            mj = float(np.max(np.abs(r)))
+        else:
+            mj = sum(abs(q[i]) * float(hw) ** (i - j) for i in range(j, n + 1))
+        mj *= max(256, (hw >> 8) + 1) if j >= 1 else 1
+        lim.append(60 if mj == 0 else math.floor(math.log2(2**29 / mj)))
+    e = [0] * (n + 1)
+    e[n] = lim[n]
+    for j in range(n - 1, -1, -1):
+        e[j] = min(lim[j], e[j + 1] - 8)
+    for j in range(n):
+        e[j + 1] = min(e[j + 1], e[j] + 30)  # SH_j in 8..30
+    if e[0] < 0:
+        raise ValueError("polynomial output beyond 2**29 output units over the input range")
+    k = [n, xc, xlo, xhi, e[0], round(q[n] * 2.0 ** e[n])]
+    for j in range(n - 1, -1, -1):
+        k += [e[j + 1] - e[j], round(q[j] * 2.0 ** e[j])]
+    if inputs is None:
+        inputs = np.unique(np.linspace(xlo, xhi, 200001).round())
+    reference = np.polyval(a, inputs / in_scale) * out_scale
+    bound = max(1.0, 2.0**-13 * float(np.max(np.abs(reference)))) if max_error is None else float(max_error)
+    # the bound analysis above is the proof; instrumenting 4,001 inputs (ends included) checks it
+    tracked = inputs if len(inputs) <= 4001 else np.unique(np.linspace(xlo, xhi, 4001).round())
+    return _finish("poly", k, poly_fixed.poly, inputs, reference, bound, "polynomial", tracked)
