@@ -1,0 +1,182 @@
+"""The calibration file on the board: verify it, then hand the control step its integer constants.
+
+File format (one JSON document, written by host/calibration_file.py):
+
+    {"format": "lsea-kit calibration", "schema": 1, "crc32": <int>, "payload": "<JSON text>"}
+
+The payload is itself a JSON document kept as a string, and `crc32` is binascii.crc32 of that
+string's UTF-8 bytes (ASCII only: the host writes it with ensure_ascii). The firmware checks the
+CRC on exactly the bytes the host wrote, so no re-serialisation is involved (MicroPython's
+json.dumps orders keys and spaces differently from CPython's). The payload repeats "schema" so
+the version is also covered by the CRC. Payload keys: "schema", "board", "date", "pots"
+(identity of pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl",
+"fixed": [ints], ...float coefficients and fit statistics for people}), and the optional
+"df", "force", "force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null).
+
+`load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
+integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
+non-zero divisors) so a file that passes can never make the control step divide by zero or
+leave 31 bits. This module runs unchanged under CPython; the host imports its checks.
+"""
+
+import json
+from array import array
+
+import binascii
+
+from firmware.bcm_fixed import LENGTH as BCM3_LENGTH
+from firmware.bcm_fixed import bcm3
+from firmware.pwl_fixed import pwl
+
+FORMAT = "lsea-kit calibration"
+SCHEMA = 1
+POT_SECTIONS = ("pot1", "pot2")
+POLY_SECTIONS = ("df", "force", "force_inverse")
+LIMIT = 1 << 30
+
+
+class CalibrationError(Exception):
+    """The calibration file is missing, corrupt, of another version, or has a bad section."""
+
+
+def payload_crc(text):
+    """CRC32 (unsigned) of the payload string's UTF-8 bytes."""
+    return binascii.crc32(text.encode()) & 0xFFFFFFFF
+
+
+def parse_document(text):
+    """(payload dict, crc) of a calibration file's text, after checking format, version and CRC."""
+    try:
+        doc = json.loads(text)
+    except ValueError:
+        raise CalibrationError("not valid JSON")
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise CalibrationError("not an lsea-kit calibration file")
+    if doc.get("schema") != SCHEMA:
+        raise CalibrationError("schema version %r not supported (this firmware reads %d)" % (doc.get("schema"), SCHEMA))
+    payload = doc.get("payload")
+    crc = doc.get("crc32")
+    if not isinstance(payload, str) or not isinstance(crc, int):
+        raise CalibrationError("payload or crc32 missing")
+    if payload_crc(payload) != crc:
+        raise CalibrationError("CRC mismatch: the file is corrupted")
+    try:
+        body = json.loads(payload)
+    except ValueError:
+        raise CalibrationError("payload is not valid JSON")
+    if not isinstance(body, dict) or body.get("schema") != SCHEMA:
+        raise CalibrationError("payload schema does not match the envelope")
+    return body, crc
+
+
+def _int_list(section, name):
+    values = section.get("fixed") if isinstance(section, dict) else None
+    if not isinstance(values, list) or not values:
+        raise CalibrationError("section %s: no fixed-point list" % name)
+    for v in values:
+        if not isinstance(v, int) or isinstance(v, bool) or v > LIMIT or v < -LIMIT:
+            raise CalibrationError("section %s: fixed-point values must be ints within 2**30" % name)
+    return values
+
+
+def _check(ok, name, why):
+    if not ok:
+        raise CalibrationError("section %s: %s" % (name, why))
+
+
+def check_bcm3(k, name="bcm3"):
+    _check(len(k) == BCM3_LENGTH, name, "bcm3 needs %d values" % BCM3_LENGTH)
+    _check(0 <= k[0] <= 16 and 1 <= k[2] <= 1 << 16 and -(1 << 16) <= k[1] <= 1 << 16, name, "bad input scaling")
+    _check(0 <= k[3] <= 8, name, "bad handle shift")
+    _check(min(k[4:8]) >= 1 and max(k[4:8]) <= 1 << 20, name, "weights must be 1..2**20")
+    _check(max(k[8:12]) - min(k[8:12]) <= 1 << 21 and max(abs(v) for v in k[8:12]) <= 1 << 29, name, "handles out of range")
+
+
+def check_pwl(k, name="pwl"):
+    n = k[0]
+    _check(n >= 2 and len(k) == 2 + 2 * n, name, "table length does not match its knot count")
+    _check(0 <= k[1] <= 16, name, "bad input shift")
+    x = k[2 : 2 + n]
+    y = k[2 + n :]
+    i = 1
+    while i < n:
+        dx = x[i] - x[i - 1]
+        _check(dx > 0, name, "knot codes must increase")
+        _check(dx * abs(y[i] - y[i - 1]) <= LIMIT - (1 << 15), name, "segment too long for 31 bits")
+        i += 1
+    _check(x[0] >= 0 and x[n - 1] <= 1 << 16, name, "knot codes outside the ADC range")
+
+
+def check_poly(k, name="poly"):
+    n = k[0]
+    _check(n >= 0 and len(k) == 6 + 2 * n, name, "polynomial length does not match its degree")
+    _check(k[2] <= k[3] and 0 <= k[4] <= 30, name, "bad input range or output shift")
+    i = 6
+    while i < len(k):
+        _check(8 <= k[i] <= 30, name, "bad Horner shift")
+        i += 2
+
+
+def pot_constants(section, name):
+    """(kind, array('i')) of a pot section, checked."""
+    values = _int_list(section, name)
+    kind = section.get("kind")
+    if kind == "bcm3":
+        check_bcm3(values, name)
+    elif kind == "pwl":
+        check_pwl(values, name)
+    else:
+        raise CalibrationError("section %s: unknown kind %r (bcm3 or pwl)" % (name, kind))
+    return kind, array("i", values)
+
+
+def poly_constants(section, name):
+    """array('i') of a polynomial section, checked; None when the section is absent."""
+    if section is None:
+        return None
+    if not isinstance(section, dict) or section.get("kind", "poly") != "poly":
+        raise CalibrationError("section %s: not a polynomial" % name)
+    values = _int_list(section, name)
+    check_poly(values, name)
+    return array("i", values)
+
+
+class Calibration:
+    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None."""
+
+    def __init__(self, body, crc):
+        for name in POT_SECTIONS:
+            if name not in body:
+                raise CalibrationError("section %s missing (calibrate that pot first)" % name)
+        self.pot1 = pot_constants(body["pot1"], "pot1")
+        self.pot2 = pot_constants(body["pot2"], "pot2")
+        self.df = poly_constants(body.get("df"), "df")
+        self.force = poly_constants(body.get("force"), "force")
+        self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
+        self.crc = crc
+        self.board = body.get("board")
+        self.date = body.get("date")
+        self.pots = body.get("pots")
+        self.version = body["schema"]
+
+
+def load_calibration(path):
+    """The verified `Calibration` in file `path`, or CalibrationError saying what is wrong."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError:
+        raise CalibrationError("no calibration file at %s" % path)
+    try:
+        text = raw.decode()
+    except Exception:  # UnicodeError on CPython, ValueError/UnicodeError on MicroPython
+        raise CalibrationError("not a text file")
+    body, crc = parse_document(text)
+    return Calibration(body, crc)
+
+
+def convert(kind, code, k):
+    """Position in um of ADC `code` through a pot's (kind, k)."""
+    if kind == "bcm3":
+        return bcm3(code, k)
+    return pwl(code, k)

@@ -1,0 +1,190 @@
+"""The calibration file on the host: build it section by section, write it atomically, read it back.
+
+The format and its checks live in `firmware/calibration.py` (one source of truth, imported
+here): an envelope {"format", "schema", "crc32", "payload"} whose payload is a JSON string, its
+CRC32 taken over that string's bytes, so the firmware verifies exactly what was written.
+
+Writes are atomic: the whole text is serialised first, then written to a temporary file in the
+same directory, flushed, fsync'ed and moved over the old file with os.replace (and the directory
+fsync'ed), so a crash or an error at any point leaves either the old file or the new one, never a
+mix. `update_section` lets each calibration step (pots, then Df, then force) add its section to
+the existing file without losing the others.
+"""
+
+import datetime
+import json
+import math
+import os
+import tempfile
+from pathlib import Path
+
+from firmware.calibration import (
+    FORMAT,
+    POLY_SECTIONS,
+    POT_SECTIONS,
+    SCHEMA,
+    CalibrationError,
+    parse_document,
+    payload_crc,
+    poly_constants,
+    pot_constants,
+)
+from host.errors import UserError
+from host.fixed_export import export_poly, export_pot
+
+SECTIONS = POT_SECTIONS + POLY_SECTIONS
+INFO_KEYS = ("board", "date", "pots")
+
+
+def _plain(value):
+    """JSON-safe copy: numpy scalars to Python, non-finite floats to None (MicroPython's json
+    cannot read NaN), tuples to lists."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if hasattr(value, "tolist"):
+        return _plain(value.tolist())
+    if isinstance(value, bool) or value is None or isinstance(value, (int, str)):
+        return value
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    raise TypeError("cannot store %r in a calibration file" % (value,))
+
+
+def now_iso():
+    return datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat()
+
+
+def new_document(board=None, pots=None, date=None):
+    """An empty calibration payload: identity only, no sections yet."""
+    return {"schema": SCHEMA, "board": board, "pots": dict(pots or {}), "date": date or now_iso()}
+
+
+def check_sections(doc):
+    """Raise UserError if a present section would be refused by the firmware."""
+    for name in doc:
+        if name not in SECTIONS + INFO_KEYS + ("schema",):
+            raise UserError("unknown calibration section %r (known: %s)" % (name, ", ".join(SECTIONS)))
+    try:
+        for name in POT_SECTIONS:
+            if doc.get(name) is not None:
+                pot_constants(doc[name], name)
+        for name in POLY_SECTIONS:
+            poly_constants(doc.get(name), name)
+    except CalibrationError as e:
+        raise UserError(str(e)) from None
+
+
+def encode_document(doc):
+    """The file text for payload `doc` (envelope, CRC, trailing newline)."""
+    body = _plain(dict(doc, schema=SCHEMA))
+    check_sections(body)
+    payload = json.dumps(body, sort_keys=True, ensure_ascii=True, allow_nan=False, separators=(",", ":"))
+    envelope = {"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload), "payload": payload}
+    return json.dumps(envelope, ensure_ascii=True, separators=(",", ":")) + "\n"
+
+
+def write_calibration(path, doc):
+    """Write payload `doc` to `path` atomically; returns the CRC written."""
+    path = Path(path)
+    text = encode_document(doc)  # any serialisation error happens before the disk is touched
+    directory = path.parent if str(path.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(dir=directory, prefix="." + path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w", encoding="ascii", newline="\n") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
+        raise
+    try:  # make the rename itself durable
+        dfd = os.open(directory, os.O_RDONLY)
+        try:
+            os.fsync(dfd)
+        finally:
+            os.close(dfd)
+    except OSError:
+        pass
+    return parse_document(text)[1]
+
+
+def read_calibration(path):
+    """The verified payload dict of the calibration file at `path` (UserError if unusable)."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise UserError("no calibration file at %s" % path) from None
+    except OSError as e:
+        raise UserError("cannot read %s: %s" % (path, e.strerror)) from None
+    try:
+        body, _ = parse_document(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise UserError("calibration file %s: not a text file" % path) from None
+    except CalibrationError as e:
+        raise UserError("calibration file %s: %s" % (path, e)) from None
+    return body
+
+
+def update_section(path, name, section, board=None, pots=None):
+    """Set section `name` of the file at `path` (created if missing), keeping all the others.
+
+    A corrupt existing file is refused (UserError), never silently replaced.
+    """
+    if name not in SECTIONS:
+        raise UserError("unknown calibration section %r (known: %s)" % (name, ", ".join(SECTIONS)))
+    doc = read_calibration(path) if Path(path).exists() else new_document(board, pots)
+    doc[name] = section
+    if board is not None:
+        doc["board"] = board
+    if pots:
+        doc["pots"] = dict(doc.get("pots") or {}, **pots)
+    doc["date"] = now_iso()
+    write_calibration(path, doc)
+    return doc
+
+
+def pot_section(fit, adc_bits, pot_id=None, max_error_um=None):
+    """A pot section from a FitResult (x in ADC codes, y in mm): float and fixed-point forms."""
+    try:
+        kind, fixed = export_pot(fit, adc_bits, max_error_um)
+    except ValueError as e:
+        raise UserError("cannot export the %s fit for the firmware: %s" % (fit.model, e)) from None
+    stats = fit.summary()
+    coefficients = stats.pop("coefficients")
+    return {
+        "kind": kind,
+        "adc_bits": int(adc_bits),
+        "pot_id": pot_id,
+        "model": fit.model,
+        "order": int(fit.order),
+        "coefficients": coefficients,
+        "fit": stats,
+        "fixed": list(fixed),
+        "fixed_check": fixed.report(),
+    }
+
+
+def poly_section(coeffs_high_first, x_range, in_scale, out_scale, units, stats=None):
+    """A polynomial section (Df, force or its inverse): `units` e.g. ("um", "um") or ("um", "mN")."""
+    try:
+        fixed = export_poly(coeffs_high_first, x_range[0], x_range[1], in_scale, out_scale)
+    except ValueError as e:
+        raise UserError("cannot export the polynomial for the firmware: %s" % e) from None
+    return {
+        "kind": "poly",
+        "coefficients": [float(c) for c in coeffs_high_first],
+        "x_range": [float(x_range[0]), float(x_range[1])],
+        "in_scale": float(in_scale),
+        "out_scale": float(out_scale),
+        "units": list(units),
+        "fit": stats or {},
+        "fixed": list(fixed),
+        "fixed_check": fixed.report(),
+    }
