@@ -10,10 +10,10 @@ g is piecewise linear through four points (0, g0), (u1, g1), (u2, g2), (1, g3) w
 corners rounded by a parabola over +-knee_halfwidth, so g is smooth (C1) and strictly increasing
 when the three slopes are positive. Outside the track the wiper sits on the end contacts.
 
-e(x) = c3 * v**3 + c4 * v**4 with v = (x - centre_mm) / half_span_mm: a mounting error that is
-flat in the middle of the stroke and grows toward both ends (the pot body bowed or tilted against
-the carriage it follows). The two pots get different e, so with no load they disagree by
-Df(x) = e1(x) - e2(x), shaped like SPEC section 3. Only + - * / are used, so the values are
+e(x) = sum_k c_k v**k (k = 0..4) with v = (x - centre_mm) / half_span_mm: a smooth mounting
+error (the pot body bowed and tilted against the carriage it follows), small in the middle of the
+stroke and growing toward both ends. The two pots get different e, so with no load they disagree
+by Df(x) = e1(x) - e2(x), shaped like SPEC section 3 (docs/simulated-actuator.md gives the split). Only + - * / are used, so the values are
 bit-identical under MicroPython and CPython.
 """
 
@@ -41,13 +41,17 @@ class Potentiometer:
         m = p["mount_error"]
         self.centre = float(m["centre_mm"])
         self.half = float(m["half_span_mm"])
-        self.c3 = float(m["c3_mm"])
-        self.c4 = float(m["c4_mm"])
+        self.coeffs = [float(c) for c in m["coeffs_mm"]]
 
     def mount_error_mm(self, x):
         v = (x - self.centre) / self.half
-        v3 = v * v * v
-        return self.c3 * v3 + self.c4 * v3 * v
+        c = self.coeffs
+        e = 0.0
+        k = len(c) - 1
+        while k >= 0:  # Horner
+            e = e * v + c[k]
+            k -= 1
+        return e
 
     def wiper_mm(self, x):
         """Where on the track (in stroke mm) the wiper sits when the carriage is at x."""
