@@ -39,13 +39,13 @@ P_STROKE_MIN = const(10)
 P_STROKE_MAX = const(11)
 P_SLOW_ZONE = const(12)
 PARAMS = (
-    ("kp_pos", 512, 0, GAIN_MAX),  # Q8 duty per um of position error
+    ("kp_pos", 768, 0, GAIN_MAX),  # Q8 duty per um of position error
     ("ki_pos", 16, 0, GAIN_MAX),  # Q8 duty per um per step, into the Q8 integral
     ("kp_force", 2560, 0, GAIN_MAX),  # Q8 duty per um of deformation error
     ("ki_force", 64, 0, GAIN_MAX),
     ("out_limit", 8000, 0, DUTY_MAX),  # |PI output| limit, duty
     ("int_limit", 6000, 0, DUTY_MAX),  # |integral| limit, duty
-    ("slew", 50, 0, DUTY_MAX),  # max duty change per step (0 = unlimited)
+    ("slew", 500, 0, DUTY_MAX),  # max duty change per step (0 = unlimited)
     ("host_timeout_ms", 1000, 0, 600000),  # host silence that stops the motor (0 = off)
     ("rail_reads", 4, 1, 1000),  # consecutive reads at a rail that make a fault
     ("rail_margin", 0, 0, 255),  # codes from the rail that count as "at the rail"

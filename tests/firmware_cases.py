@@ -346,3 +346,78 @@ def case_ring():
     kept = [r.due() for _ in range(9)]
     assert kept == [False, False, True] * 3, kept
     return {"dropped": r.dropped}
+
+
+def case_position_sim(path, targets, settle_ticks=1500, hold_ticks=300):
+    """Position mode on the simulated actuator (boards/sim, a physical model) from mid-stroke.
+
+    For each target: settle, then over `hold_ticks` record the firmware's own D2 and the true
+    travel of pot 2's wiper (the quantity pot 2 was calibrated against, so the two agree up to
+    the calibration and noise errors). Returns the worst of each, and the worst overshoot.
+    """
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)  # the board file says simulated: hal configures sim
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    pot2 = world.pots[1]
+    sim.run_ticks(10)
+    app.set_mode("position")
+    out = {"fw_err_um": 0, "true_err_um": 0, "overshoot_um": 0}
+    for target in targets:
+        app.set_target(target)
+        start = app.ctrl.meas.d2
+        k = 0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            x = world.block_mm
+            travel = int((x + pot2.mount_error_mm(x)) * 1000.0)
+            over = travel - target if target > start else target - travel
+            if over > out["overshoot_um"]:
+                out["overshoot_um"] = over
+            if k >= settle_ticks:
+                e = abs(app.ctrl.meas.d2 - target)
+                if e > out["fw_err_um"]:
+                    out["fw_err_um"] = e
+                e = abs(travel - target)
+                if e > out["true_err_um"]:
+                    out["true_err_um"] = e
+            k += 1
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "position", st
+    return out
+
+
+def case_boot_calibration_file(good_path, bad_path):
+    """App reads the calibration file at boot: a good file enables closed loop (status has its
+    CRC); a corrupt one leaves raw readings and open loop working and says why closed loop is
+    refused."""
+    from firmware.app import App
+
+    good = App("boards/sim.json", good_path)
+    st = good.status()
+    assert st["calibration_error"] is None and isinstance(st["calibration_crc"], int), st
+    good.step()
+    good.set_mode("position")
+    good.set_mode("force")
+    bad = App("boards/sim.json", bad_path)
+    st = bad.status()
+    assert st["calibration_crc"] is None and "CRC" in st["calibration_error"].upper(), st
+    try:
+        bad.set_mode("position")
+        raise AssertionError("closed loop accepted with a corrupt calibration")
+    except ValueError as exc:
+        assert "calibration" in str(exc)
+    bad.set_mode("open_loop")
+    bad.set_target(1000)
+    bad.step()
+    assert bad.ctrl.duty > 0 and bad.sampler.raw2 > 0
+    missing = App("boards/sim.json", bad_path + ".absent")
+    assert "no calibration file" in missing.status()["calibration_error"], missing.status()
+    return {"crc": good.status()["calibration_crc"], "error": st["calibration_error"]}
