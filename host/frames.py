@@ -70,7 +70,9 @@ class FrameDecoder:
         self.board_dropped = 0
         self._last_tseq = None
 
-    def feed(self, data):
+    def feed(self, data, final=False):
+        """Frames completed by `data`. With final=True (the stream has ended) a header whose
+        frame can no longer complete is skipped, so frames behind a corrupted length are found."""
         buf = self._buf
         buf += data
         out = []
@@ -101,7 +103,11 @@ class FrameDecoder:
                 body = P.HEADER_BYTES + ((length + 3) & ~3)
                 total = body + P.CRC_BYTES
                 if end - i < total:
-                    break
+                    if not final:
+                        break
+                    self.skipped_bytes += 1
+                    pos = i + 1
+                    continue
                 if crc(view[i : i + body]) != _CRC.unpack_from(buf, i + body)[0]:
                     self.crc_errors += 1
                     self.skipped_bytes += 1
@@ -127,6 +133,10 @@ class FrameDecoder:
             self._last_tseq = frame.seq
         elif frame.type == P.T_HELLO:
             self._last_tseq = None  # the board restarted: its telemetry numbering starts over
+
+    def flush(self):
+        """The stream ended: return the frames still recoverable from what is buffered."""
+        return self.feed(b"", final=True)
 
     def restart_sequence(self):
         """Forget the last telemetry sequence number (after stream off/on)."""
