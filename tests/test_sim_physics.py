@@ -17,8 +17,36 @@ def drive_force_n(volts):
 
 
 def spring_n(d):
+    """The documented curve: SPEC's k1 d + k2 d|d| until one spring loses its preload, then
+    half the slope (only the other spring still pushes)."""
     sp = PARAMS["springs"]
-    return sp["k1_n_per_mm"] * d + sp["k2_n_per_mm2"] * d * abs(d)
+    k1, k2 = sp["k1_n_per_mm"], sp["k2_n_per_mm2"]
+    rel = sp["preload_n"] / (k1 / 2)
+    if abs(d) <= rel:
+        return k1 * d + k2 * d * abs(d)
+    f_rel = k1 * rel + k2 * rel * rel
+    return math.copysign(f_rel + (k1 + 2 * k2 * rel) / 2 * (abs(d) - rel), d)
+
+
+def test_spring_curve_matches_spec_then_softens_past_the_preload():
+    r = run_both("""
+a = Actuator(PARAMS, 1)
+ds = [i * 0.01 - 2.0 for i in range(401)]
+emit({'f': [a.spring_force(d) for d in ds], 'rel': a.d_release})
+""")
+    sp = PARAMS["springs"]
+    rel = r["rel"]
+    assert 1.0 < rel < sp["cavity_mm"]  # the preload holds over the paper's 0-15 N range
+    ds = [i * 0.01 - 2.0 for i in range(401)]
+    for d, f in zip(ds, r["f"]):
+        assert f == pytest.approx(spring_n(d), rel=1e-12, abs=1e-12)
+        if abs(d) <= rel:
+            assert f == pytest.approx(12.37 * d + 0.65 * d * abs(d), rel=1e-12, abs=1e-12)
+    slope = [(b - a) / 0.01 for a, b in zip(r["f"], r["f"][1:])]
+    assert slope[200] == pytest.approx(12.37, rel=0.01)  # about 12.4 N/mm near zero
+    assert max(slope) < 12.37 + 2 * 0.65 * rel + 0.1
+    assert slope[0] < 0.6 * max(slope)  # past the release only one spring acts
+    assert all(s > 0 for s in slope)
 
 
 def test_passive_system_loses_energy_and_settles():

@@ -6,9 +6,11 @@ Mechanics (one degree of freedom each for the nut and the block):
   (rad per metre of nut travel). The motor's electrical time constant (L/R, ~0.1 ms) is far below
   a tick, so the current is quasi-static, i = (V - ke * omega) / R, and the drive force on the
   nut is eta * kt * G * i. Its back-EMF part is a viscous term, integrated implicitly.
-- Springs: the nut drives the block through two preloaded springs; the preload keeps both in
-  contact, so their net force is one odd curve F(d) = k1 d + k2 d|d| of the deformation
-  d = nut - block, with a hard contact at |d| = cavity_mm (an inelastic constraint).
+- Springs: the nut drives the block through two preloaded springs. While the preload keeps both
+  in contact their net force is F(d) = k1 d + k2 d|d| of the deformation d = nut - block (SPEC
+  section 4). Beyond d_release = preload_n / (k1 / 2) one spring has lost its preload and lifts
+  off: from there only the other spring acts and the slope halves. Hard contact at
+  |d| = cavity_mm (an inelastic constraint).
 - Block: mass on a slider with Coulomb and viscous friction (stick when the net force cannot
   overcome Coulomb friction), hard end stops at the stroke ends.
 - Load: none, a constant force, or a force gauge pulled through a fibre: a spring that acts only
@@ -58,6 +60,10 @@ class Actuator:
         self.k1 = float(sp["k1_n_per_mm"])
         self.k2 = float(sp["k2_n_per_mm2"])
         self.cavity = float(sp["cavity_mm"])
+        self.d_release = float(sp["preload_n"]) / (self.k1 / 2.0)
+        r = self.d_release
+        self.f_release = self.k1 * r + self.k2 * r * r
+        self.k_after = (self.k1 + 2.0 * self.k2 * r) / 2.0
         self.c_spring = float(sp["damping_n_s_per_m"])
 
         b = p["block"]
@@ -147,6 +153,10 @@ class Actuator:
 
     def spring_force(self, d_mm):
         """Net spring force (N) on the block for deformation d = nut - block (mm)."""
+        if d_mm > self.d_release:
+            return self.f_release + self.k_after * (d_mm - self.d_release)
+        if d_mm < -self.d_release:
+            return -self.f_release + self.k_after * (d_mm + self.d_release)
         return self.k1 * d_mm + self.k2 * d_mm * abs(d_mm)
 
     def _substeps(self, dt):
@@ -182,7 +192,7 @@ class Actuator:
         i = 0
         while i < n:
             d = x1 - x2
-            fs = self.k1 * d + self.k2 * d * abs(d) + self.c_spring * (v1 - v2) / 1000.0
+            fs = self.spring_force(d) + self.c_spring * (v1 - v2) / 1000.0
             fe = self._external(x2)
             v1 = (v1 + a1 * (f_drive - fs)) / damp1
             v2 = (v2 + a2 * (fs + fe)) / damp2
