@@ -163,3 +163,24 @@ emit({'out': out})
     (up, v_off1), (down, v_off2) = r["out"]
     assert up > 1.0 and down < -1.0
     assert v_off1 == 0.0 and v_off2 == 0.0
+
+
+def test_keep_world_survives_a_firmware_restart_but_peripherals_reset():
+    r = run_both("""
+machine.configure(BOARD)
+machine.configure(BOARD)
+fresh = machine.world().block_mm
+p = machine.PWM(machine.Pin('in1'), freq=20000, duty_u16=40000)
+machine.run_ticks(300)
+moved = machine.world().block_mm
+machine.keep_world()
+machine.configure(BOARD)  # what a soft reset of the virtual board does via firmware/hal.py
+kept = (machine.world().block_mm, machine.ticks, machine.motor_voltage())
+machine.keep_world(False)
+machine.configure(BOARD)
+emit({'fresh': fresh, 'moved': moved, 'kept': kept, 'reset': (machine.world().block_mm, machine.ticks)})
+""")
+    start = BOARD["actuator"]["start"]["block_mm"]
+    assert r["fresh"] == start and r["moved"] > start + 5
+    assert r["kept"] == [r["moved"], 300, 0.0]
+    assert r["reset"] == [start, 0]

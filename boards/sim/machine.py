@@ -25,6 +25,7 @@ ticks = 0  # timer ticks fired (run_ticks and idle)
 skipped_ticks = 0  # ticks idle() dropped after a stall instead of catching up
 _next_due = 0
 _max_catchup = 20
+_persist = False  # keep_world(): the actuator outlives firmware restarts in this process
 
 try:
     _ticks_us = time.ticks_us
@@ -42,18 +43,30 @@ except AttributeError:  # CPython
         return a + b
 
 
+def keep_world(flag=True):
+    """After keep_world(), configure() for the same board keeps the existing actuator (position,
+    time, faults, load) and only resets the peripherals: a firmware restart or soft reset resets
+    the MCU, not the mechanics. For the long-running virtual board; tests get a fresh world."""
+    global _persist
+    _persist = bool(flag)
+
+
 def configure(board, seed=None):
     """Create the simulated world for this board (a fresh actuator, no timer, motor off)."""
     global _world, _board, _timer, _pins, _pwms, ticks, skipped_ticks, _max_catchup
     params = dict(board["actuator"])
     params["adc_bits"] = board["adc_bits"]
-    _world = Actuator(params, board.get("seed", 0) if seed is None else seed)
+    same = _world is not None and _board is not None and _board.get("name") == board.get("name")
+    if _persist and same:
+        _world.set_motor_voltage(0.0)  # the bridge is unpowered while the MCU restarts
+    else:
+        _world = Actuator(params, board.get("seed", 0) if seed is None else seed)
+        ticks = 0
+        skipped_ticks = 0
     _board = board
     _timer = None
     _pins = {}
     _pwms = {}
-    ticks = 0
-    skipped_ticks = 0
     _max_catchup = int(params.get("machine", {}).get("max_catchup_ticks", 20))
     return _world
 
