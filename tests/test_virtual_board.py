@@ -1,0 +1,162 @@
+"""End to end against the virtual board: real micropython + firmware behind a pty, real pyserial,
+real mpremote, the host CLI."""
+
+import json
+import subprocess
+import sys
+import time
+
+import numpy as np
+import pytest
+import serial
+
+from firmware import protocol as P
+from firmware.app import VERSION
+from host import cli
+from host.board_client import BoardClient
+from host.errors import UserError
+from host.frames import FrameDecoder
+from host.telemetry_log import load, record
+from host.virtual_board import VirtualBoard
+
+MPREMOTE = str(__import__("pathlib").Path(sys.executable).parent / "mpremote")
+
+
+@pytest.fixture(scope="module")
+def vboard():
+    with VirtualBoard() as board:
+        yield board
+
+
+def mpremote(port, *args):
+    proc = subprocess.run([MPREMOTE, "connect", port, *args], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 0, proc.stderr
+    return proc.stdout
+
+
+def test_status_handshake_over_the_pty(vboard):
+    with BoardClient(vboard.path) as board:
+        status = board.status_info
+        assert status["version"] == VERSION and status["board"] == "sim" and status["protocol"] == P.PROTOCOL_VERSION
+        assert status["mode"] == "idle"
+        from firmware.controller import PARAMS
+
+        assert board.call("get", "slew") == dict((r[0], r[1]) for r in PARAMS)["slew"]
+
+
+def test_garbage_on_the_port_gets_error_frames_and_the_firmware_keeps_serving(vboard):
+    with BoardClient(vboard.path) as board:
+        board.serial.write(b"hello board\n\x00\xff\xfe garbage\n!12 status *00000000\n")
+        errors = []
+        deadline = time.monotonic() + 2
+        while len(errors) < 3 and time.monotonic() < deadline:
+            errors += [f for f in board._read_frames() if f.type == P.T_ERROR]
+        assert [e.text() for e in errors] == ["expected !<seq> <cmd> <args> *<crc32>", "line is not ASCII", "checksum mismatch"]
+        assert board.call("status")["board"] == "sim"
+
+
+def test_open_loop_drive_moves_the_simulated_nut_and_stop_zeroes_duty(vboard):
+    with BoardClient(vboard.path) as board:
+        board.call("mode", "open_loop")
+        board.call("target", 6000)
+        board.start_stream(100)
+        raw1 = []
+        end = time.monotonic() + 1.0
+        while time.monotonic() < end:
+            board.heartbeat_if_due()
+            raw1 += [int(v) for f in board.frames() for v in f.records()[:, P.FIELDS.index("raw1")]]
+        board.call("stop")
+        board.stop_stream()
+        status = board.call("status")
+    assert len(raw1) > 50
+    assert abs(raw1[-1] - raw1[0]) > 50  # the nut travelled (codes, 12-bit)
+    assert status["mode"] == "idle" and status["duty"] == 0
+
+
+def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
+    out = tmp_path / "run.csv"
+    with BoardClient(vboard.path) as board:
+        summary = record(board, out, seconds=10, rate=1000)
+    data = load(out)
+    t = data["t_us"]
+    assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
+    assert len(t) == summary.samples >= 9500  # the unix port kept the 1 kHz loop and the link up
+    assert set(np.diff(t)) == {1000}  # every record of every step arrived, in order
+
+
+def test_cli_log_and_plot(vboard, tmp_path, capsys):
+    out = tmp_path / "cli.csv"
+    assert cli.main(["log", "--port", vboard.path, "--out", str(out), "--seconds", "1", "--rate", "200"]) == 0
+    printed = capsys.readouterr().out
+    assert "lost frames 0" in printed
+    assert 150 <= len(load(out)["t_us"]) <= 260
+    assert cli.main(["plot", str(out), "--out", str(tmp_path / "cli.png")]) == 0
+    assert (tmp_path / "cli.png").stat().st_size > 10000
+
+
+def test_mpremote_exec_fs_and_atomic_rename_then_firmware_comes_back(vboard, tmp_path):
+    board_json = json.loads(mpremote(vboard.path, "exec", "print(open('board.json').read())"))
+    assert board_json["name"] == "sim"
+    src = tmp_path / "note.txt"
+    src.write_bytes(b"\x00binary\xff\r\n" * 100)
+    mpremote(vboard.path, "fs", "cp", str(src), ":note.tmp", "+", "exec", "import os; os.rename('note.tmp', 'note.txt')")
+    assert (vboard.root / "note.txt").read_bytes() == src.read_bytes()
+    listing = mpremote(vboard.path, "fs", "ls", ":")
+    assert "note.txt" in listing and "firmware/" in listing
+    # mpremote left the board at the REPL: the client soft-resets it, main.py starts the firmware.
+    with BoardClient(vboard.path) as board:
+        assert board.status_info["version"] == VERSION
+        assert board.hellos == 1
+
+
+def test_ctrl_c_stops_the_firmware_with_the_motor_off(vboard):
+    with BoardClient(vboard.path) as board:
+        board.call("mode", "open_loop")
+        board.call("target", 8000)
+        time.sleep(0.3)
+        assert board.call("status")["duty"] != 0  # driving when the Ctrl-C comes
+        board.serial.write(b"\x03")
+        time.sleep(0.5)
+    out = mpremote(vboard.path, "resume", "exec", "import boards.sim.machine as m; print(m.motor_voltage(), m.ticks)")
+    assert int(out.split()[-1]) > 100  # the same process: the world that was driven
+    assert float(out.split()[-2]) == 0.0
+
+
+def test_client_errors_are_one_line_user_errors(vboard, tmp_path):
+    with pytest.raises(UserError, match="not found"):
+        BoardClient(str(tmp_path / "ttyNONE"))
+    with BoardClient(vboard.path):
+        with pytest.raises(UserError, match="busy"):
+            BoardClient(vboard.path)
+    # a port where nothing answers (a pty nobody serves) is "no lsea-kit firmware"
+    import os
+    import tty
+
+    master, slave = os.openpty()
+    tty.setraw(slave)
+    try:
+        with pytest.raises(UserError, match="no lsea-kit firmware"):
+            BoardClient(os.ttyname(slave), timeout=0.2, retries=0)
+    finally:
+        os.close(master)
+        os.close(slave)
+
+
+def test_decoder_sees_the_repl_banner_as_noise(vboard):
+    ser = serial.Serial(vboard.path, timeout=0.05)
+    try:
+        ser.write(b"\x03")  # firmware stops, REPL prints its banner and prompt
+        time.sleep(0.4)
+        ser.write(b"\x04")  # soft reset at the friendly REPL: the board boots main.py again
+        data = b""
+        end = time.monotonic() + 3
+        dec = FrameDecoder()
+        frames = []
+        while time.monotonic() < end and not any(f.type == P.T_HELLO for f in frames):
+            chunk = ser.read(4096)
+            data += chunk
+            frames += dec.feed(chunk)
+    finally:
+        ser.close()
+    assert b"soft reboot" in data and b">>> " in data
+    assert dec.skipped_bytes > 0 and [f.type for f in frames if f.type == P.T_HELLO] == [P.T_HELLO]
