@@ -1,4 +1,4 @@
-"""Speed of the simulated actuator: microseconds per 1 ms physics tick, under MicroPython and CPython.
+"""Speed of the simulated actuator: microseconds per 1 ms physics tick, MicroPython and CPython.
 
 The virtual board runs the world in real time at loop_hz = 1000, so one tick (physics plus the
 firmware's ADC reads) must take well under 1 ms on the host. Run from the repository root:
@@ -77,11 +77,12 @@ def main():
     impl = sys.implementation.name
     print("%s %s: configure() (noise table) %.1f ms" % (
         impl, ".".join(str(v) for v in sys.implementation.version[:3]), bench_configure(board)))
+    over = board.get("oversample", 4)
     for load, reads, writes, label in (
         ("none", 0, False, "physics only"),
         ("none", 1, True, "physics + 3 ADC reads + 2 duty writes"),
-        ("none", board.get("oversample", 4), True, "physics + 3 x oversample ADC reads + 2 duty writes"),
-        ("gauge", board.get("oversample", 4), True, "same, force-gauge load (stiffer, more sub-steps)"),
+        ("none", over, True, "physics + 3 x oversample ADC reads + 2 duty writes"),
+        ("gauge", over, True, "same, force-gauge load (stiffer, more sub-steps)"),
     ):
         us, nsub = bench(board, load, reads, writes)
         print("%s: %7.1f us per 1 ms tick  (%d sub-steps, %s)" % (impl, us, nsub, label))
@@ -97,5 +98,5 @@ if __name__ == "__main__":
         sys.path.insert(0, os.path.join(os.path.dirname(here), "tests"))
         from micropython_runner import REPO, micropython_env, micropython_executable
 
-        subprocess.run([micropython_executable(), "-X", "heapsize=8M", os.path.join(here, "bench_sim.py")],
-                       cwd=str(REPO), env=micropython_env(), check=True)
+        cmd = [micropython_executable(), "-X", "heapsize=8M", os.path.join(here, "bench_sim.py")]
+        subprocess.run(cmd, cwd=str(REPO), env=micropython_env(), check=True)

@@ -83,10 +83,12 @@ time.sleep(0.2)  # a 200 ms stall: 200 ticks are due at once
 stalled = machine.idle()
 skipped = machine.skipped_ticks
 ran = 0
+waits = []
 deadline = time.time() + 0.3
 while time.time() < deadline:
     ran += machine.idle()
-emit({'stalled': stalled, 'skipped': skipped, 'calls': n[0], 'ran': ran,
+    waits.append(machine.time_to_next_tick_us())
+emit({'wait_max': max(waits), 'wait_min': min(waits), 'stalled': stalled, 'skipped': skipped, 'calls': n[0], 'ran': ran,
       'cap': PARAMS['machine']['max_catchup_ticks'], 'ticks': machine.ticks})
 """)
     for r in results:
@@ -95,6 +97,7 @@ emit({'stalled': stalled, 'skipped': skipped, 'calls': n[0], 'ran': ran,
         assert r["calls"] == r["ticks"] == r["stalled"] + r["ran"]
         # Keeping up afterwards: ~300 ticks in 300 ms of busy idling (loose: a shared machine).
         assert 200 <= r["ran"] <= 320
+        assert 0 <= r["wait_min"] and r["wait_max"] <= 1000  # never more than one period away
 
 
 def test_adc_pwm_and_pin_calls_allocate_nothing_under_heap_lock():
@@ -178,7 +181,8 @@ machine.configure(BOARD)  # what a soft reset of the virtual board does via firm
 kept = (machine.world().block_mm, machine.ticks, machine.motor_voltage())
 machine.keep_world(False)
 machine.configure(BOARD)
-emit({'fresh': fresh, 'moved': moved, 'kept': kept, 'reset': (machine.world().block_mm, machine.ticks)})
+reset = (machine.world().block_mm, machine.ticks)
+emit({'fresh': fresh, 'moved': moved, 'kept': kept, 'reset': reset})
 """)
     start = BOARD["actuator"]["start"]["block_mm"]
     assert r["fresh"] == start and r["moved"] > start + 5

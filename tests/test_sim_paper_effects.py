@@ -1,6 +1,6 @@
 """The simulated actuator reproduces the paper's Df effect (SPEC section 5): in force control at
-no load, +5 N from D2 = 30 mm, an uncorrected assembly error Df stops the block part-way ("blocking",
-43.1 mm in the paper); with D1 corrected by Df the block runs on to the 60 mm end stop.
+no load, +5 N from D2 = 30 mm, an uncorrected assembly error Df stops the block part-way
+("blocking", 43.1 mm in the paper); with D1 corrected by Df the block runs on to the end stop.
 Run identically on CPython and MicroPython."""
 
 import pytest

@@ -1,4 +1,4 @@
-"""Physics sanity of the simulated actuator, each case run identically on CPython and MicroPython."""
+"""Physics sanity of the simulated actuator; every case runs identically on both interpreters."""
 
 import json
 import math

@@ -252,6 +252,15 @@ def idle():
     return n
 
 
+def time_to_next_tick_us():
+    """Microseconds until idle() has a tick to run (0 when one is due): lets a real-time loop
+    sleep instead of spinning. None when no timer runs."""
+    if _timer is None:
+        return None
+    late = _ticks_diff(_ticks_us(), _next_due)
+    return 0 if late >= 0 else -late
+
+
 def unique_id():
     return b"LSEA-SIM"
 
