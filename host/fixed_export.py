@@ -111,10 +111,10 @@ def track(func, inputs, k):
     return TrackedInt.peak
 
 
-def _input_shift(adc_bits):
+def _input_shift(adc_bits, scaled_bits):
     if not 1 <= int(adc_bits) <= 16:
-        raise ValueError("adc_bits must be 1..16 (inputs are scaled to 16 bits), got %r" % (adc_bits,))
-    return 16 - int(adc_bits)
+        raise ValueError("adc_bits must be 1..16, got %r" % (adc_bits,))
+    return scaled_bits - int(adc_bits)
 
 
 def _pot_bound(values_um, adc_bits, max_error_um):
@@ -153,7 +153,7 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
     `unit_um` is how many um one unit of the handles is (1000 for mm). Raises ValueError when
     the curve is not degree 3 or its integer form cannot meet the bound.
     """
-    s = _input_shift(adc_bits)
+    s = _input_shift(adc_bits, 20)
     w = [float(v) for v in coefficients["weights"]]
     p = [float(v) * unit_um for v in coefficients["handles"]]
     if len(w) != 4 or len(p) != 4:
@@ -164,7 +164,7 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
         raise ValueError("bcm handles must be finite")
     lx = round(float(coefficients["lx"]) * 2**s)
     rx = round(float(coefficients["rx"]) * 2**s)
-    if not 1 <= rx <= 2**16 or abs(lx) > 2**16:
+    if not 1 <= rx <= 2**20 or abs(lx) > 2**20:
         raise ValueError("lx/rx outside the %d-bit ADC range (lx=%r, rx=%r)" % (adc_bits, coefficients["lx"], coefficients["rx"]))
     wmax = max(w)
     weights = [round(v * 2**WEIGHT_BITS / wmax) for v in w]
@@ -172,10 +172,10 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
         raise ValueError("weight ratio %.0f too large for %d-bit weights" % (wmax / min(w), WEIGHT_BITS))
     spread = max(p) - min(p)
     h = 4
-    while h > 0 and (spread * 2**h > 2**21 or max(abs(v) for v in p) * 2**h > 2**29):
+    while h > 0 and (spread * 2**h > 2**20 or max(abs(v) for v in p) * 2**h > 2**29):
         h -= 1
-    if spread * 2**h > 2**21 or max(abs(v) for v in p) * 2**h > 2**29:
-        raise ValueError("handle spread %.0f um too large (limit 2**21 um)" % spread)
+    if spread * 2**h > 2**20 or max(abs(v) for v in p) * 2**h > 2**29:
+        raise ValueError("handle spread %.0f um too large (limit 2**20 um)" % spread)
     k = [s, lx, rx, h, *weights, *(round(v * 2**h) for v in p)]
     codes = np.arange(2**adc_bits)
     reference = bcm_float(coefficients, codes) * unit_um
@@ -195,7 +195,7 @@ def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM,
     `reference(codes) -> um` is what the table is checked against (default: the float
     interpolation of the knots themselves, clamped at the ends).
     """
-    s = _input_shift(adc_bits)
+    s = _input_shift(adc_bits, 16)
     xs = np.asarray(knots_x, dtype=float)
     ys = np.asarray(knots_y, dtype=float) * unit_um
     if xs.ndim != 1 or len(xs) < 2 or len(xs) != len(ys):
