@@ -23,7 +23,8 @@ except AttributeError:  # CPython
         return a - b
 
 
-TICKS = 3000
+TICKS = 2000
+REPEATS = 5
 
 
 def bench(board, load, reads_per_channel, duty_writes):
@@ -58,9 +59,13 @@ def bench(board, load, reads_per_channel, duty_writes):
                 p2.duty_u16(20000)
 
     machine.Timer(-1).init(freq=board["loop_hz"], mode=machine.Timer.PERIODIC, callback=step)
-    t0 = _now()
-    machine.run_ticks(TICKS)
-    return _diff(_now(), t0) / TICKS, w._n_sub
+    best = None
+    for _ in range(REPEATS):  # best of a few: other jobs on the host only ever add time
+        t0 = _now()
+        machine.run_ticks(TICKS)
+        us = _diff(_now(), t0) / TICKS
+        best = us if best is None or us < best else best
+    return best, w._n_sub
 
 
 def bench_configure(board):
@@ -85,7 +90,8 @@ def main():
         ("gauge", over, True, "same, force-gauge load (stiffer, more sub-steps)"),
     ):
         us, nsub = bench(board, load, reads, writes)
-        print("%s: %7.1f us per 1 ms tick  (%d sub-steps, %s)" % (impl, us, nsub, label))
+        print("%s: %7.1f us per 1 ms tick, best of %d x %d  (%d sub-steps, %s)"
+              % (impl, us, REPEATS, TICKS, nsub, label))
 
 
 if __name__ == "__main__":

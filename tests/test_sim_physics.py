@@ -172,3 +172,34 @@ emit({'x2': a.block_mm, 'fs': a.spring_force_n, 'fe': a.external_force_n,
     assert abs(r["v1"]) < 1e-2
     assert r["fs"] == pytest.approx(-drive_force_n(1.5), rel=0.01)
     assert abs(r["fs"] + r["fe"]) <= PARAMS["block"]["coulomb_n"] * 1.05
+
+
+def test_one_ms_ticks_with_few_substeps_track_a_finely_resolved_run():
+    """The default sub-step count is converged: 15x finer steps move the answer by < 20-ish um."""
+    r = run_both("""
+def world(max_omega_dt, gauge):
+    p = json.loads(json.dumps(PARAMS))
+    p['integration']['max_omega_dt'] = max_omega_dt
+    a = Actuator(p, 1)
+    a.place(50.0)
+    if gauge:
+        a.set_load('gauge')
+    return a
+res = {}
+for gauge in (False, True):
+    coarse = world(PARAMS['integration']['max_omega_dt'], gauge)
+    fine = world(0.02, gauge)
+    dx = df = 0.0
+    for i in range(1500):
+        for a in (coarse, fine):
+            a.set_motor_voltage(-4.0 if i < 1000 else 3.0)  # hit the stop/fibre, then reverse
+            a.advance(0.001)
+        dx = max(dx, abs(coarse.block_mm - fine.block_mm))
+        df = max(df, abs(coarse.spring_force_n - fine.spring_force_n))
+    res[str(gauge)] = [coarse._n_sub, fine._n_sub, dx, df]
+emit(res)
+""")
+    for n_coarse, n_fine, dx, df in r.values():
+        assert n_fine >= 10 * n_coarse
+        assert dx < 0.05  # mm
+        assert df < 0.5  # N, at the stick/slip and contact instants

@@ -158,3 +158,35 @@ emit({'runs': out})
     assert c1 == c2 and x1 == x2
     assert c1 != c3
     assert x1 == x3  # the seed changes sensor noise and gauge drift, not the mechanics
+
+
+def test_gauge_reads_the_fibre_tension_plus_a_slow_bounded_zero_drift():
+    r = run_both("""
+out = []
+for seed in (1, 2, 3):
+    a = Actuator(PARAMS, seed)
+    a.set_load('gauge', anchor_mm=45.0, stiffness_n_per_mm=20.0)
+    row = []
+    for t in (0.0, 60.0, 3600.0):
+        a.time_s = t
+        a.place(44.5)  # fibre taut: 10 N
+        row.append((a.gauge_tension_n, a.gauge_reading_n,
+                    sum(a.adc_code('gauge') for i in range(200)) / 200))
+    out.append(row)
+emit({'rows': out})
+""")
+    g = BOARD["actuator"]["gauge"]
+    drifts = []
+    for row in r["rows"]:
+        (t0, r0, c0), (t1, r1, c1), (t2, r2, c2) = row
+        assert t0 == t1 == t2 == pytest.approx(10.0)
+        assert r0 == t0  # no drift at power-up
+        assert abs(r1 - t1) <= g["drift_n_per_min"] + 1e-12  # at most the rate after 1 min
+        rate = (r1 - t1) / 60.0
+        # Linear in time, bounded at drift_max_n.
+        assert abs(r2 - t2) == pytest.approx(min(abs(rate) * 3600.0, g["drift_max_n"]), rel=1e-9)
+        for reading, code in ((r0, c0), (r1, c1), (r2, c2)):
+            want = (g["zero_fraction"] + reading / g["n_per_fraction"]) * 4095
+            assert code == pytest.approx(want, abs=0.3)
+        drifts.append(r1 - t1)
+    assert len(set(drifts)) == 3  # the seed picks the drift rate

@@ -28,6 +28,7 @@ from boards.sim.potentiometer import Potentiometer
 
 CHANNELS = ("pot1", "pot2", "reference", "gauge")
 REFERENCE_TARGETS = ("pot1", "pot2", "nut", "block")
+_NOISE_MASK = noise.TABLE_SIZE - 1
 
 
 class Actuator:
@@ -302,7 +303,7 @@ class Actuator:
             x ^= x >> 17
             x ^= (x << 5) & 0xFFFFFFFF
             self._adc_state = x
-            code = (self._base_q8[i] + ((self._noise[x & 4095] * self._sigma_q8[i]) >> 8)) >> 8
+            code = (self._base_q8[i] + ((self._noise[x & _NOISE_MASK] * self._sigma_q8[i]) >> 8)) >> 8
             if code < 0:
                 code = 0
             elif code > self.full_code:

@@ -7,6 +7,7 @@ inside a firmware step that is proven under micropython.heap_lock().
 """
 
 import math
+from array import array
 
 MASK32 = 0xFFFFFFFF
 TABLE_BITS = 12
@@ -62,13 +63,22 @@ class Rng:
 
 
 def normal_table(rng):
-    """TABLE_SIZE integers, a unit normal in Q8, rescaled so the table's own standard deviation
-    is 256 to within rounding (the ADC noise then has the configured sigma, not sigma +- 2 %)."""
-    raw = [rng.normal_q16() for _ in range(TABLE_SIZE)]
-    mean = sum(raw) // TABLE_SIZE
+    """array('i') of TABLE_SIZE values, a unit normal in Q8, rescaled so the table's own standard
+    deviation is 256 to within rounding (the ADC noise then has the configured sigma, not
+    sigma +- 2 %). One 16 KiB block, filled in place: light on a small MicroPython heap."""
+    t = array("i", bytes(4 * TABLE_SIZE))
+    total = 0
+    for i in range(TABLE_SIZE):
+        v = rng.normal_q16()
+        t[i] = v
+        total += v
+    mean = total // TABLE_SIZE
     ss = 0
-    for v in raw:
+    for v in t:
         ss += (v - mean) * (v - mean)
     # sqrt is correctly rounded in IEEE 754 on both interpreters, so this scale is bit-identical.
     scale = Q8 * math.sqrt(TABLE_SIZE / ss)
-    return [int((v - mean) * scale + (0.5 if v >= mean else -0.5)) for v in raw]
+    for i in range(TABLE_SIZE):
+        v = t[i] - mean
+        t[i] = int(v * scale + (0.5 if v >= 0 else -0.5))
+    return t
