@@ -32,7 +32,7 @@ class FloatStep:
         self.kp = 768 / 256.0
         self.ki = 16 / 65536.0
         self.kpf = 2560 / 256.0
-        self.kif = 64 / 65536.0
+        self.kif = 1024 / 65536.0
         self.mode = 0
         self.target = 0.0
 

@@ -42,7 +42,7 @@ PARAMS = (
     ("kp_pos", 768, 0, GAIN_MAX),  # Q8 duty per um of position error
     ("ki_pos", 16, 0, GAIN_MAX),  # Q8 duty per um per step, into the Q8 integral
     ("kp_force", 2560, 0, GAIN_MAX),  # Q8 duty per um of deformation error
-    ("ki_force", 64, 0, GAIN_MAX),
+    ("ki_force", 1024, 0, GAIN_MAX),
     ("out_limit", 8000, 0, DUTY_MAX),  # |PI output| limit, duty
     ("int_limit", 6000, 0, DUTY_MAX),  # |integral| limit, duty
     ("slew", 500, 0, DUTY_MAX),  # max duty change per step (0 = unlimited)

@@ -421,3 +421,46 @@ def case_boot_calibration_file(good_path, bad_path):
     missing = App("boards/sim.json", bad_path + ".absent")
     assert "no calibration file" in missing.status()["calibration_error"], missing.status()
     return {"crc": good.status()["calibration_crc"], "error": st["calibration_error"]}
+
+
+def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
+    """Force mode on the simulated actuator pulling the force gauge through the fibre (SPEC 4).
+
+    For each target: settle, then average over `hold_ticks` the firmware's force estimate
+    F0(d) and the model's true spring force. Returns the worst |mean - target| of each, mN.
+    """
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    world.set_load("gauge")
+    sim.run_ticks(10)
+    app.set_mode("force")
+    out = {"est_err_mN": 0, "true_err_mN": 0}
+    for target in targets:
+        app.set_target(target)
+        k = 0
+        est = 0
+        true = 0.0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            if k >= settle_ticks:
+                est += app.ctrl.meas.force
+                true += world.spring_force_n * 1000.0
+            k += 1
+        e = abs(est // hold_ticks - target)
+        if e > out["est_err_mN"]:
+            out["est_err_mN"] = e
+        e = abs(int(true / hold_ticks) - target)
+        if e > out["true_err_mN"]:
+            out["true_err_mN"] = e
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "force", st
+    return out
