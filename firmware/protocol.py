@@ -59,12 +59,12 @@ COMMANDS = (
     ("mode", ("name",), "null", "switch mode: idle, open_loop, position or force"),
     ("target", ("value:int",), "null",
      "set the target of the current mode: um (position), mN (force), signed duty (open_loop)"),
-    ("stream", ("on|off", "[hz:int]"), "object: hz", "start telemetry at hz (default 1000) or stop it"),
+    ("stream", ("on/off", "[hz:int]"), "object: hz", "start telemetry at hz (default 1000) or stop it"),
     ("get", ("param",), "int", "read a controller parameter"),
     ("set", ("param", "value:int"), "null", "write a controller parameter"),
     ("params", (), "list of names", "the parameters `get`/`set` accept"),
     ("heartbeat", (), "null", "keep-alive: the firmware stops the motor when heartbeats stop"),
-    ("reset", (), "null", "reset the application (after the reply is sent)"),
+    ("reset", (), "null", "clear latched faults, motor off, mode idle (after the reply is sent)"),
 )
 COMMAND_NAMES = tuple(c[0] for c in COMMANDS)
 _ARITY = {c[0]: (sum(1 for a in c[1] if not a.startswith("[")), len(c[1])) for c in COMMANDS}
