@@ -167,13 +167,36 @@ def case_step_exception(path):
     app.set_target(-3000)
     _run_steps(app.step, 100)
     assert max(pwm_duties(app)) > 0
+    good = app.sampler.adc2
     app.sampler.adc2 = BrokenADC()
     app.step()  # must not raise: a hard IRQ cannot propagate it
     st = app.status()
     assert pwm_duties(app) == [0, 0]
     assert st["mode"] == "idle" and "step_exception" in st["faults"], st
     assert "OSError" in st["last_fault"], st["last_fault"]
-    return {"fault": st["last_fault"]}
+    text = st["last_fault"]
+    # Again as in a hard IRQ, with the heap locked: the failing step still stops the motor
+    # (MicroPython may then report MemoryError, as it cannot allocate the OSError itself).
+    app.reset()
+    app.sampler.adc2 = good
+    app.set_mode("open_loop")
+    app.set_target(3000)
+    _run_steps(app.step, 100)
+    assert max(pwm_duties(app)) > 0
+    app.sampler.adc2 = BrokenADC()
+    locked = micropython is not None and hasattr(micropython, "heap_lock")
+    if locked:
+        micropython.heap_lock()
+    try:
+        app.step()
+    finally:
+        if locked:
+            micropython.heap_unlock()
+    st = app.status()
+    assert pwm_duties(app) == [0, 0] and st["mode"] == "idle", st
+    assert "step_exception" in st["faults"], st
+    assert "OSError" in st["last_fault"] or "MemoryError" in st["last_fault"], st["last_fault"]
+    return {"fault": text}
 
 
 class InterruptingLink:
@@ -464,3 +487,29 @@ def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
     app.shutdown()
     assert st["faults"] == [] and st["mode"] == "force", st
     return out
+
+
+def case_wiper_lift_sim(path, pot):
+    """A wiper lift in the physical model (boards/sim inject_fault) while position mode drives
+    the motor: the very next timer tick leaves 0 V across the motor and names the pot."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    sim.run_ticks(10)
+    app.set_mode("position")
+    app.set_target(app.ctrl.meas.d2 + 10000)
+    sim.run_ticks(50)
+    assert sim.motor_voltage() > 0.5, sim.motor_voltage()
+    sim.world().inject_fault(pot, "wiper_lift")
+    sim.run_ticks(1)
+    volts = sim.motor_voltage()
+    st = app.status()
+    app.shutdown()
+    assert volts == 0, volts
+    assert st["faults"] == ["rail_" + pot] and pot in st["last_fault"], st
+    return {"fault": st["last_fault"]}

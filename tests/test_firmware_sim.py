@@ -81,3 +81,12 @@ def test_force_mode_holds_gauge_targets_on_sim(tmp_path, cal_data):
         # between the two pots' tables and the Df fit, x 12.4 mN/um): 1 N, the paper's worst.
         assert out["est_err_mN"] <= 200, out
         assert out["true_err_mN"] <= 1000, out
+
+
+@pytest.mark.parametrize("pot", ["pot1", "pot2"])
+def test_physical_wiper_lift_stops_motor_next_tick(tmp_path, cal_data, pot):
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps({"cal": cal_data}))
+    call = "case_wiper_lift_sim(%r, %r)" % (str(path), pot)
+    here = eval("firmware_cases." + call)
+    assert here == on_micropython(call)
