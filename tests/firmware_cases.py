@@ -513,3 +513,50 @@ def case_wiper_lift_sim(path, pot):
     assert volts == 0, volts
     assert st["faults"] == ["rail_" + pot] and pot in st["last_fault"], st
     return {"fault": st["last_fault"]}
+
+
+class QuittingLink:
+    """Polled by run(): keeps the host alive, drives open loop, asks run() to return after
+    `ms` of wall-clock time (the simulated board advances in real time in machine.idle())."""
+
+    def __init__(self, app, ms):
+        import time
+
+        self.time = time
+        self.app = app
+        self.ms = ms
+        self.t0 = None
+        self.volts_seen = 0.0
+
+    def poll(self):
+        import boards.sim.machine as sim
+
+        t = self.time
+        now = t.ticks_ms() if hasattr(t, "ticks_ms") else int(t.monotonic() * 1000)
+        if self.t0 is None:
+            self.t0 = now
+            self.app.set_mode("open_loop")
+            self.app.set_target(3000)
+        self.app.heartbeat()
+        v = sim.motor_voltage()
+        if v > self.volts_seen:
+            self.volts_seen = v
+        if now - self.t0 >= self.ms:
+            self.app.quit()
+
+
+def case_run_realtime_sim():
+    """run() on the simulated board: the timer fires from machine.idle() in real time, the link
+    is polled, and a normal return from run() also leaves the motor off."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None)
+    link = QuittingLink(app, 300)
+    app.run(link)
+    st = app.status()
+    assert link.volts_seen > 0.5, link.volts_seen
+    assert sim.motor_voltage() == 0 and st["mode"] == "idle", st
+    assert app.ctrl.steps >= 100, app.ctrl.steps  # 300 ms at 1 kHz, allowing for a slow host
+    return {"ok": True}

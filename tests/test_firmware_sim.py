@@ -90,3 +90,8 @@ def test_physical_wiper_lift_stops_motor_next_tick(tmp_path, cal_data, pot):
     call = "case_wiper_lift_sim(%r, %r)" % (str(path), pot)
     here = eval("firmware_cases." + call)
     assert here == on_micropython(call)
+
+
+def test_run_in_real_time_on_sim_returns_with_motor_off():
+    here = firmware_cases.case_run_realtime_sim()
+    assert here == on_micropython("case_run_realtime_sim()")
