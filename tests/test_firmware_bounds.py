@@ -18,6 +18,7 @@ import pytest
 
 import fake_hardware
 import firmware_cases
+import test_firmware_sim_cases as sim_cases
 
 LIMIT = 2**30
 PEAK = {"value": 0, "where": None, "on": False}
@@ -110,7 +111,7 @@ def test_step_intermediates_stay_within_31_bits(instrumented, tmp_path):
     path.write_text(json.dumps({"cal": cal}))
     PEAK.update(value=0, where=None, on=True)
     # position mode with the shipped gains, across the stroke
-    firmware_cases.case_position_sim(str(path), [10000, 58000, 2000], settle_ticks=800, hold_ticks=50)
+    sim_cases.case_position_sim(str(path), [10000, 58000, 2000], settle_ticks=800, hold_ticks=50)
     shipped = PEAK["value"]
     # every mode with every gain and limit at its maximum, driven into both stroke ends,
     # force targets at both extremes of the accepted range

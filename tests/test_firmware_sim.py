@@ -5,7 +5,7 @@ import json
 import pytest
 
 import fake_hardware
-import firmware_cases
+import test_firmware_sim_cases as sim_cases
 from firmware.calibration import FORMAT, SCHEMA, payload_crc
 from micropython_runner import REPO, run_micropython
 
@@ -19,7 +19,7 @@ def cal_data(tmp_path_factory):
 
 def on_micropython(call):
     proc = run_micropython(
-        "import json, firmware_cases\nprint(json.dumps(firmware_cases.%s))\n" % call,
+        "import json, test_firmware_sim_cases as sim_cases\nprint(json.dumps(sim_cases.%s))\n" % call,
         extra_paths=[REPO / "tests"],
     )
     return json.loads(proc.stdout.strip().splitlines()[-1])
@@ -29,7 +29,7 @@ def test_position_mode_reaches_targets_on_sim(tmp_path, cal_data):
     path = tmp_path / "cal.json"
     path.write_text(json.dumps({"cal": cal_data}))
     call = "case_position_sim(%r, %r)" % (str(path), TARGETS)
-    for out in (eval("firmware_cases." + call), on_micropython(call)):
+    for out in (eval("sim_cases." + call), on_micropython(call)):
         # Over 0.3 s after 1.5 s of settling, for targets across 5-55 mm (the paper's usable
         # range). One code is ~16 um of travel on the simulated pots; a reading is the mean of 4
         # reads with 1.5 LSB noise each (sigma ~12 um), so the firmware's own D2 strays up to
@@ -63,7 +63,7 @@ def test_boot_reads_calibration_file_and_refuses_a_corrupt_one(tmp_path, cal_dat
     bad = tmp_path / "bad.json"
     bad.write_text(text[:i] + ("9" if text[i] != "9" else "8") + text[i + 1 :])  # one digit flipped
     call = "case_boot_calibration_file(%r, %r)" % (str(good), str(bad))
-    here = eval("firmware_cases." + call)
+    here = eval("sim_cases." + call)
     there = on_micropython(call)
     assert here == there
 
@@ -72,7 +72,7 @@ def test_force_mode_holds_gauge_targets_on_sim(tmp_path, cal_data):
     path = tmp_path / "cal.json"
     path.write_text(json.dumps({"cal": cal_data}))
     call = "case_force_sim(%r, %r)" % (str(path), [-5000, -10000, -15000])
-    for out in (eval("firmware_cases." + call), on_micropython(call)):
+    for out in (eval("sim_cases." + call), on_micropython(call)):
         # The paper's steps (SPEC 5): -5, -10, -15 N, measured -5.2 / -10.7 / -14.4 N. After 2 s,
         # the mean of the firmware's own estimate over 0.5 s: the PI removes its error to within
         # the estimate's noise (two pots, ~17 um of deformation each read, x 12.4 mN/um, about
@@ -88,10 +88,10 @@ def test_physical_wiper_lift_stops_motor_next_tick(tmp_path, cal_data, pot):
     path = tmp_path / "cal.json"
     path.write_text(json.dumps({"cal": cal_data}))
     call = "case_wiper_lift_sim(%r, %r)" % (str(path), pot)
-    here = eval("firmware_cases." + call)
+    here = eval("sim_cases." + call)
     assert here == on_micropython(call)
 
 
 def test_run_in_real_time_on_sim_returns_with_motor_off():
-    here = firmware_cases.case_run_realtime_sim()
+    here = sim_cases.case_run_realtime_sim()
     assert here == on_micropython("case_run_realtime_sim()")

@@ -1,0 +1,197 @@
+"""Firmware cases on the simulated actuator (boards/sim, E's physical model), run under both
+CPython and MicroPython like tests/firmware_cases.py (named test_firmware_* only to sit in the
+firmware tests' namespace; it holds no pytest tests and imports nothing CPython-only).
+"""
+
+from firmware_cases import Cal, load
+
+
+def case_position_sim(path, targets, settle_ticks=1500, hold_ticks=300):
+    """Position mode on the simulated actuator (boards/sim, a physical model) from mid-stroke.
+
+    For each target: settle, then over `hold_ticks` record the firmware's own D2 and the true
+    travel of pot 2's wiper (the quantity pot 2 was calibrated against, so the two agree up to
+    the calibration and noise errors). Returns the worst of each, and the worst overshoot.
+    """
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)  # the board file says simulated: hal configures sim
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    pot2 = world.pots[1]
+    sim.run_ticks(10)
+    app.set_mode("position")
+    out = {"fw_err_um": 0, "true_err_um": 0, "overshoot_um": 0}
+    for target in targets:
+        app.set_target(target)
+        start = app.ctrl.meas.d2
+        k = 0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            x = world.block_mm
+            travel = int((x + pot2.mount_error_mm(x)) * 1000.0)
+            over = travel - target if target > start else target - travel
+            if over > out["overshoot_um"]:
+                out["overshoot_um"] = over
+            if k >= settle_ticks:
+                e = abs(app.ctrl.meas.d2 - target)
+                if e > out["fw_err_um"]:
+                    out["fw_err_um"] = e
+                e = abs(travel - target)
+                if e > out["true_err_um"]:
+                    out["true_err_um"] = e
+            k += 1
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "position", st
+    return out
+
+
+def case_boot_calibration_file(good_path, bad_path):
+    """App reads the calibration file at boot: a good file enables closed loop (status has its
+    CRC); a corrupt one leaves raw readings and open loop working and says why closed loop is
+    refused."""
+    from firmware.app import App
+
+    good = App("boards/sim.json", good_path)
+    st = good.status()
+    assert st["calibration_error"] is None and isinstance(st["calibration_crc"], int), st
+    good.step()
+    good.set_mode("position")
+    good.set_mode("force")
+    bad = App("boards/sim.json", bad_path)
+    st = bad.status()
+    assert st["calibration_crc"] is None and "CRC" in st["calibration_error"].upper(), st
+    try:
+        bad.set_mode("position")
+        raise AssertionError("closed loop accepted with a corrupt calibration")
+    except ValueError as exc:
+        assert "calibration" in str(exc)
+    bad.set_mode("open_loop")
+    bad.set_target(1000)
+    bad.step()
+    assert bad.ctrl.duty > 0 and bad.sampler.raw2 > 0
+    missing = App("boards/sim.json", bad_path + ".absent")
+    assert "no calibration file" in missing.status()["calibration_error"], missing.status()
+    return {"crc": good.status()["calibration_crc"], "error": st["calibration_error"]}
+
+
+def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
+    """Force mode on the simulated actuator pulling the force gauge through the fibre (SPEC 4).
+
+    For each target: settle, then average over `hold_ticks` the firmware's force estimate
+    F0(d) and the model's true spring force. Returns the worst |mean - target| of each, mN.
+    """
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    world.set_load("gauge")
+    sim.run_ticks(10)
+    app.set_mode("force")
+    out = {"est_err_mN": 0, "true_err_mN": 0}
+    for target in targets:
+        app.set_target(target)
+        k = 0
+        est = 0
+        true = 0.0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            if k >= settle_ticks:
+                est += app.ctrl.meas.force
+                true += world.spring_force_n * 1000.0
+            k += 1
+        e = abs(est // hold_ticks - target)
+        if e > out["est_err_mN"]:
+            out["est_err_mN"] = e
+        e = abs(int(true / hold_ticks) - target)
+        if e > out["true_err_mN"]:
+            out["true_err_mN"] = e
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "force", st
+    return out
+
+
+def case_wiper_lift_sim(path, pot):
+    """A wiper lift in the physical model (boards/sim inject_fault) while position mode drives
+    the motor: the very next timer tick leaves 0 V across the motor and names the pot."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    sim.run_ticks(10)
+    app.set_mode("position")
+    app.set_target(app.ctrl.meas.d2 + 10000)
+    sim.run_ticks(50)
+    assert sim.motor_voltage() > 0.5, sim.motor_voltage()
+    sim.world().inject_fault(pot, "wiper_lift")
+    sim.run_ticks(1)
+    volts = sim.motor_voltage()
+    st = app.status()
+    app.shutdown()
+    assert volts == 0, volts
+    assert st["faults"] == ["rail_" + pot] and pot in st["last_fault"], st
+    return {"fault": st["last_fault"]}
+
+
+class QuittingLink:
+    """Polled by run(): keeps the host alive, drives open loop, asks run() to return after
+    `ms` of wall-clock time (the simulated board advances in real time in machine.idle())."""
+
+    def __init__(self, app, ms):
+        import time
+
+        self.time = time
+        self.app = app
+        self.ms = ms
+        self.t0 = None
+        self.volts_seen = 0.0
+
+    def poll(self):
+        import boards.sim.machine as sim
+
+        t = self.time
+        now = t.ticks_ms() if hasattr(t, "ticks_ms") else int(t.monotonic() * 1000)
+        if self.t0 is None:
+            self.t0 = now
+            self.app.set_mode("open_loop")
+            self.app.set_target(3000)
+        self.app.heartbeat()
+        v = sim.motor_voltage()
+        if v > self.volts_seen:
+            self.volts_seen = v
+        if now - self.t0 >= self.ms:
+            self.app.quit()
+
+
+def case_run_realtime_sim():
+    """run() on the simulated board: the timer fires from machine.idle() in real time, the link
+    is polled, and a normal return from run() also leaves the motor off."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None)
+    link = QuittingLink(app, 300)
+    app.run(link)
+    st = app.status()
+    assert link.volts_seen > 0.5, link.volts_seen
+    assert sim.motor_voltage() == 0 and st["mode"] == "idle", st
+    assert app.ctrl.steps >= 100, app.ctrl.steps  # 300 ms at 1 kHz, allowing for a slow host
+    return {"ok": True}
