@@ -369,3 +369,33 @@ def case_ring():
     kept = [r.due() for _ in range(9)]
     assert kept == [False, False, True] * 3, kept
     return {"dropped": r.dropped}
+
+
+def case_board_files():
+    """Every shipped board file loads; broken ones fail with a reason a user can act on."""
+    from firmware.board_config import BoardError, check_board, load_board
+
+    names = []
+    for name in ("pico", "esp32_devkitc", "pyboard", "sim"):
+        b = load_board("boards/%s.json" % name)
+        assert b["loop_hz"] == 1000 and b["adc_bits"] == 12 and b["sources"], name
+        names.append(b["name"])
+    reasons = []
+    for broken in (
+        {"name": "x", "adc_bits": 12, "adc_pins": {"pot1": 1}, "driver": "two_pwm", "motor_pins": {"in1": 2, "in2": 3}},
+        {"name": "x", "adc_bits": 12, "adc_pins": {"pot1": 1, "pot2": 2}, "driver": "l298", "motor_pins": {}},
+        {"name": "x", "adc_bits": 12, "adc_pins": {"pot1": 1, "pot2": 2}, "driver": "pwm_dir", "motor_pins": {"pwm": 4}},
+        {"name": "x", "adc_bits": 24, "adc_pins": {"pot1": 1, "pot2": 2}, "driver": "two_pwm", "motor_pins": {"in1": 2, "in2": 3}},
+    ):
+        try:
+            check_board(broken)
+            raise AssertionError("accepted a broken board %r" % broken)
+        except BoardError as exc:
+            reasons.append(str(exc))
+    assert "pot2" in reasons[0] and "l298" in reasons[1] and "dir" in reasons[2] and "adc_bits" in reasons[3], reasons
+    try:
+        load_board("boards/no_such_board.json")
+        raise AssertionError("missing board file accepted")
+    except BoardError as exc:
+        assert "not found" in str(exc)
+    return {"boards": names, "reasons": reasons}

@@ -100,3 +100,8 @@ def test_motor_wiring_two_drivers():
 def test_telemetry_ring():
     here, there = both("case_ring()")
     assert here == there
+
+
+def test_board_files_load_and_broken_ones_are_explained():
+    here, there = both("case_board_files()")
+    assert here == there and here["boards"] == ["pico", "esp32_devkitc", "pyboard", "sim"]
