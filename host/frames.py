@@ -10,7 +10,7 @@ each telemetry payload.
 import json
 import struct
 import zlib
-from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -22,8 +22,7 @@ _KNOWN_TYPES = frozenset(P.TYPE_NAMES)
 _RECORD_BYTES = 4 * P.RECORD_WORDS
 
 
-@dataclass(frozen=True)
-class Frame:
+class Frame(NamedTuple):
     type: int
     seq: int
     count: int
