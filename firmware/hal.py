@@ -43,10 +43,9 @@ class _PybTimerPWM:
         if value is None:
             return self._duty
         self._duty = value
-        # period <= 65536 on a 16-bit channel, value <= 65535: the product stays below 2**32,
-        # but it is computed once per step, not in a 31-bit hot loop; TIM8 at 20 kHz has
-        # period ~8400 so the product is < 2**30.
-        self._ch.pulse_width((value * self._period) >> 16)
+        # (value >> 2) <= 16383 and period <= 65536 keep the product below 2**30 (no big int
+        # in the interrupt); the 2 dropped bits are 1/16384 of full scale.
+        self._ch.pulse_width(((value >> 2) * self._period) >> 14)
         return None
 
     def deinit(self):

@@ -10,7 +10,7 @@ import gc
 import json
 from array import array
 
-from fake_hardware import ReplayMachine
+from fake_hardware import Pin, ReplayMachine
 
 try:
     import micropython
@@ -399,3 +399,62 @@ def case_board_files():
     except BoardError as exc:
         assert "not found" in str(exc)
     return {"boards": names, "reasons": reasons}
+
+
+class _PybTimer:
+    """The part of pyb.Timer the pyboard PWM adapter uses (168 MHz TIM8 at `freq`)."""
+
+    PWM = 2
+
+    def __init__(self, id, freq):
+        self.id = id
+        self._period = 168000000 // freq - 1
+
+    def period(self):
+        return self._period
+
+    def channel(self, n, mode, pin=None, pulse_width=0):
+        ch = _PybChannel(n, pin, pulse_width)
+        _PYB.channels[(self.id, n)] = ch
+        return ch
+
+
+class _PybChannel:
+    def __init__(self, n, pin, pulse_width):
+        self.n = n
+        self.pin = pin
+        self.pw = pulse_width
+
+    def pulse_width(self, v):
+        self.pw = v
+
+
+class _PYB:
+    Timer = _PybTimer
+    Pin = Pin
+    channels = {}
+
+
+def case_pyboard_pwm_adapter():
+    """The pyboard board file drives the DRV8833 through pyb.Timer channels (no machine.PWM on
+    stm32): duty maps to pulse widths on TIM8 CH1/CH2 of Y1/Y2."""
+    import sys
+
+    from firmware.board_config import load_board
+    from firmware.motor import Motor
+
+    sys.modules["pyb"] = _PYB
+    try:
+        m = Motor(ReplayMachine({}), load_board("boards/pyboard.json"))
+        ch1 = _PYB.channels[(8, 1)]
+        ch2 = _PYB.channels[(8, 2)]
+        assert ch1.pin.id == "Y1" and ch2.pin.id == "Y2"
+        m.set(5000)
+        assert (ch1.pw, ch2.pw) == (4199, 0), (ch1.pw, ch2.pw)  # half of period 8400
+        m.set(-10000)
+        assert (ch1.pw, ch2.pw) == (0, 8399), (ch1.pw, ch2.pw)
+        m.off()
+        assert (ch1.pw, ch2.pw) == (0, 0)
+    finally:
+        del sys.modules["pyb"]
+    return {"ok": True}

@@ -105,3 +105,8 @@ def test_telemetry_ring():
 def test_board_files_load_and_broken_ones_are_explained():
     here, there = both("case_board_files()")
     assert here == there and here["boards"] == ["pico", "esp32_devkitc", "pyboard", "sim"]
+
+
+def test_pyboard_pwm_adapter():
+    here, there = both("case_pyboard_pwm_adapter()")
+    assert here == there
