@@ -71,14 +71,23 @@ class Link:
         if self._poller is None:
             self._poller = select.poll()
             self._poller.register(self._stdin, select.POLLIN)
-        poller = self._poller
         byte = self._byte
         budget = _INPUT_PER_POLL
-        while budget > 0 and poller.poll(0):
+        while budget > 0 and self._ready():
             if not self._stdin.readinto(byte):
                 return
             self.feed_byte(byte[0])
             budget -= 1
+
+    def _ready(self):
+        poller = self._poller
+        if hasattr(poller, "ipoll"):
+            # MicroPython: ipoll yields the poller's own reused entry, so an idle main loop
+            # that polls thousands of times a second makes no garbage.
+            for _ in poller.ipoll(0):
+                return True
+            return False
+        return bool(poller.poll(0))
 
     def feed(self, data):
         """Handle a chunk of input bytes (used by tests and by read_input one byte at a time)."""

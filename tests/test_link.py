@@ -162,3 +162,15 @@ def test_micropython_telemetry_drain_allocates_nothing():
     assert [f.count for f in frames] == [16, 16, 8] and dec.lost_frames == 0
     t = [int(r[0]) for f in frames for r in f.records()]
     assert len(t) == 40 and all(b - a == 1000 for a, b in zip(t, t[1:]))
+
+
+def test_idle_main_loop_polling_allocates_nothing(mpy):
+    # ipoll on a real stdin with nothing to read: the link's per-iteration cost when idle.
+    proc = mpy(
+        "import micropython\nfrom firmware.link import Link\n"
+        "class A:\n    telemetry = __import__('firmware.telemetry').telemetry.Ring(4)\n"
+        "link = Link(A(), write=lambda b: None)\nlink.poll()\n"
+        "i = 0\nmicropython.heap_lock()\nwhile i < 1000:\n    link.poll()\n    i += 1\n"
+        "micropython.heap_unlock()\nprint('ok', i)\n"
+    )
+    assert proc.stdout.split() == ["ok", "1000"]

@@ -160,3 +160,19 @@ def test_decoder_sees_the_repl_banner_as_noise(vboard):
         ser.close()
     assert b"soft reboot" in data and b">>> " in data
     assert dec.skipped_bytes > 0 and [f.type for f in frames if f.type == P.T_HELLO] == [P.T_HELLO]
+
+
+def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
+    with pytest.raises(UserError, match="no usable calibration"):
+        BoardClient(vboard.path, require_calibration=True)
+    root = tmp_path / "flash"
+    root.mkdir()
+    from host.virtual_board import DEFAULT_BOARD, install_factory
+
+    install_factory(root, DEFAULT_BOARD)
+    app = root / "firmware" / "app.py"
+    app.write_text(app.read_text().replace('VERSION = "%s"' % VERSION, 'VERSION = "0.0.0-old"'))
+    with VirtualBoard(root=root, factory=False) as old:
+        with pytest.raises(UserError, match="board runs firmware 0.0.0-old, this host expects"):
+            BoardClient(old.path)
+
