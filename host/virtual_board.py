@@ -35,8 +35,21 @@ HEAP = "4M"
 _RAW_BANNER = b"raw REPL; CTRL-B to exit"
 _FRIENDLY_PROMPT = b">>> "
 
+RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
+
+# Runs first in every micropython process: mount the board's flash as "/", and give `machine` a
+# reset() (the unix port has none) that exits with RESET_EXIT so the relay reboots into main.py,
+# as mpremote's `reset` expects of a board.
 _BOOT = """\
 import os, sys
+import machine as _hw_machine
+class _VirtualMachine:
+    def __getattr__(self, name):
+        return getattr(_hw_machine, name)
+    def reset(self, _exit=sys.exit):
+        _exit(%d)
+sys.modules['machine'] = _VirtualMachine()
+del _VirtualMachine
 os.mount(os.VfsPosix(%r), '/')
 os.chdir('/')
 sys.path[:] = ['', '.frozen', '/lib']
@@ -154,7 +167,7 @@ class VirtualBoard:
             os.setsid()
             fcntl.ioctl(0, termios.TIOCSCTTY, 0)
 
-        args = [micropython_executable(), "-X", "heapsize=" + HEAP, "-i", "-c", _BOOT % (str(self.root), run_main)]
+        args = [micropython_executable(), "-X", "heapsize=" + HEAP, "-i", "-c", _BOOT % (RESET_EXIT, str(self.root), run_main)]
         self._child = subprocess.Popen(
             args, stdin=child_side, stdout=child_side, stderr=child_side, cwd=str(self.root),
             preexec_fn=controlling_tty, close_fds=True,
@@ -253,7 +266,14 @@ class VirtualBoard:
 
     def _reboot(self, poller):
         """micropython exited (a soft reset): restart it as a board restarts."""
-        raw = self._raw_mode
+        code = None
+        if self._child is not None:
+            try:
+                code = self._child.wait(timeout=2)
+            except subprocess.TimeoutExpired:
+                pass
+        hard = code == RESET_EXIT
+        raw = self._raw_mode and not hard
         try:
             poller.unregister(self._inner)
         except (KeyError, ValueError):

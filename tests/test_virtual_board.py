@@ -176,3 +176,14 @@ def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
         with pytest.raises(UserError, match="board runs firmware 0.0.0-old, this host expects"):
             BoardClient(old.path)
 
+
+
+def test_mpremote_reset_boots_the_firmware_like_a_hard_reset(vboard):
+    boots = vboard.boots
+    mpremote(vboard.path, "reset")
+    deadline = time.monotonic() + 5
+    while vboard.boots < boots + 2 and time.monotonic() < deadline:  # mpremote's soft reset, then the reset
+        time.sleep(0.05)
+    time.sleep(0.5)
+    with BoardClient(vboard.path, start_firmware=False) as board:  # main.py runs without our help
+        assert board.status_info["version"] == VERSION
