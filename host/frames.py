@@ -75,63 +75,78 @@ class FrameDecoder:
         buf = self._buf
         buf += data
         out = []
+        append = out.append
         pos = 0
         end = len(buf)
         find = buf.find
         unpack_header = _HEADER.unpack_from
+        unpack_word = _CRC.unpack_from
         crc = zlib.crc32
+        sync = P.SYNC
+        tel = P.T_TELEMETRY
+        batch = P.TELEMETRY_BATCH
+        skipped = 0
+        last = self._last_tseq
+        lost = tel_frames = records = 0
+        dropped = self.board_dropped
         view = memoryview(buf)
         try:
             while True:
-                i = find(P.SYNC, pos)
+                i = find(sync, pos)
                 if i < 0:
                     keep = end - 1 if end > pos and buf[end - 1] == 0xA5 else end
-                    self.skipped_bytes += keep - pos
+                    skipped += keep - pos
                     pos = keep
                     break
                 if i > pos:
-                    self.skipped_bytes += i - pos
+                    skipped += i - pos
                     pos = i
-                if end - i < P.HEADER_BYTES:
+                if end - i < 12:
                     break
                 _, _, ftype, count, length, seq = unpack_header(buf, i)
-                if not frame_valid_header(ftype, count, length, seq):
-                    self.skipped_bytes += 1
+                # Telemetry is the common case: check its header inline, others in a function.
+                if ftype == tel:
+                    ok = 1 <= count <= batch and length == 4 + count * _RECORD_BYTES and seq <= 0xFFFF
+                else:
+                    ok = frame_valid_header(ftype, count, length, seq)
+                if not ok:
+                    skipped += 1
                     pos = i + 1
                     continue
-                body = P.HEADER_BYTES + ((length + 3) & ~3)
-                total = body + P.CRC_BYTES
-                if end - i < total:
+                body = 12 + ((length + 3) & ~3)
+                if end - i < body + 4:
                     if not final:
                         break
-                    self.skipped_bytes += 1
+                    skipped += 1
                     pos = i + 1
                     continue
-                if crc(view[i : i + body]) != _CRC.unpack_from(buf, i + body)[0]:
+                if crc(view[i : i + body]) != unpack_word(buf, i + body)[0]:
                     self.crc_errors += 1
-                    self.skipped_bytes += 1
+                    skipped += 1
                     pos = i + 1
                     continue
-                frame = Frame(ftype, seq, count, bytes(view[i + P.HEADER_BYTES : i + P.HEADER_BYTES + length]))
-                pos = i + total
-                self._count(frame)
-                out.append(frame)
+                append(Frame(ftype, seq, count, bytes(view[i + 12 : i + 12 + length])))
+                pos = i + body + 4
+                if ftype == tel:
+                    tel_frames += 1
+                    records += count
+                    dropped = unpack_word(buf, i + 12)[0]
+                    if last is not None:
+                        lost += (seq - last - 1) & 0xFFFF
+                    last = seq
+                elif ftype == P.T_HELLO:
+                    last = None  # the board restarted: its telemetry numbering starts over
         finally:
             view.release()
         del buf[:pos]
+        self.frames += len(out)
+        self.skipped_bytes += skipped
+        self.telemetry_frames += tel_frames
+        self.records += records
+        self.lost_frames += lost
+        self.board_dropped = dropped if dropped < 2**31 else dropped - 2**32
+        self._last_tseq = last
         return out
-
-    def _count(self, frame):
-        self.frames += 1
-        if frame.type == P.T_TELEMETRY:
-            self.telemetry_frames += 1
-            self.records += frame.count
-            self.board_dropped = frame.dropped()
-            if self._last_tseq is not None:
-                self.lost_frames += (frame.seq - self._last_tseq - 1) & P.SEQ_MASK
-            self._last_tseq = frame.seq
-        elif frame.type == P.T_HELLO:
-            self._last_tseq = None  # the board restarted: its telemetry numbering starts over
 
     def flush(self):
         """The stream ended: return the frames still recoverable from what is buffered."""
