@@ -325,6 +325,7 @@ def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=
     e[n] = lim[n]
     for j in range(n - 1, -1, -1):
         e[j] = min(lim[j], e[j + 1] - 8)
+    e[0] = min(e[0], 30)  # E0 in 0..30 (a zero polynomial has no limit of its own)
     for j in range(n):
         e[j + 1] = min(e[j + 1], e[j] + 30)  # SH_j in 8..30
     if e[0] < 0:
