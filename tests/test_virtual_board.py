@@ -187,3 +187,23 @@ def test_mpremote_reset_boots_the_firmware_like_a_hard_reset(vboard):
     time.sleep(0.5)
     with BoardClient(vboard.path, start_firmware=False) as board:  # main.py runs without our help
         assert board.status_info["version"] == VERSION
+
+
+def test_host_sim_prints_a_port_that_answers_and_stops_on_ctrl_c():
+    import signal
+
+    proc = subprocess.Popen([sys.executable, "-m", "host", "sim"], stdout=subprocess.PIPE, text=True)
+    try:
+        path = proc.stdout.readline().strip()
+        assert path.startswith("/dev/pts/")
+        with BoardClient(path) as board:
+            assert board.status_info["board"] == "sim"
+    finally:
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+
+
+def test_port_sim_runs_a_command_on_a_throwaway_board(capsys):
+    assert cli.main(["status", "--port", "sim"]) == 0
+    out = capsys.readouterr().out
+    assert "version            %s" % VERSION in out and "board              sim" in out
