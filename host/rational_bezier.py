@@ -1,0 +1,301 @@
+"""The BCM: a rational Bernstein (Bezier) calibration curve of degree n, and how it is fitted.
+
+Model (SPEC section 2, the paper's eq. 2), with t = (x - lx) / rx clamped to [0, 1]:
+
+    f(x) = sum_i B_i(t) w_i p_i / sum_i B_i(t) w_i,    B_i(t) = C(n, i) t^i (1 - t)^(n - i)
+
+p_i are the handles (reference units, mm for our pots) and w_i > 0 the weights. The paper writes
+the binomial as C(n+1, i-1) with i = 1..n+1; a fixed positive factor per term is absorbed by the
+weights, so this module uses the standard Bernstein form. Multiplying every weight by one
+constant changes nothing, so the stored form has w_0 = 1.
+
+Fitting is variable projection: for fixed weights the curve is linear in the handles (the
+functions phi_i = B_i w_i / sum_j B_j w_j are a partition of unity), so the handles are solved
+exactly by (bounded) linear least squares and only the log-weights are searched, by a bounded
+Gauss-Newton (scipy least_squares, Kaufman's Jacobian) from a few starts.
+
+- bounds="data" (default): w_0 = 1, log-weights in +-ln 60 (ratios 1/60..60), handles within the
+  reference range widened by 10 % of it on each side.
+- bounds="paper": the paper's literal box, handles in [0, 60], every weight (w_0 too) in [1, 60].
+  That box keeps the exact scale direction of the weights, which the optimiser has to live with.
+
+Monotonicity: the curve is checked at every input it can meet (every integer code when x are
+ADC codes, else a dense grid). Only when it reverses is the fit redone with non-decreasing (or
+non-increasing) handles, which with positive weights guarantees a monotone curve; a note says so.
+"""
+
+import math
+
+import numpy as np
+from scipy.linalg import solve_triangular
+from scipy.optimize import differential_evolution, lsq_linear
+from scipy.special import comb
+
+from host.fit_result import FitResult
+
+LN60 = math.log(60.0)
+WIDEN = 0.10  # handle bounds: reference range widened by this share of it on each side
+PAPER_BOX = (0.0, 60.0)  # the paper's bounds for handles and weights
+
+
+def bernstein(t, n):
+    """Matrix of the n+1 Bernstein polynomials of degree n at the points t (rows)."""
+    t = np.asarray(t, dtype=float)[:, None]
+    i = np.arange(n + 1)
+    return comb(n, i) * t**i * (1.0 - t) ** (n - i)
+
+
+def evaluate(coefficients, x):
+    """The BCM curve described by a coefficient dict {lx, rx, weights, handles} at inputs x."""
+    w = np.asarray(coefficients["weights"], dtype=float)
+    p = np.asarray(coefficients["handles"], dtype=float)
+    t = np.clip((np.asarray(x, dtype=float) - coefficients["lx"]) / coefficients["rx"], 0.0, 1.0)
+    bw = bernstein(np.atleast_1d(t).ravel(), len(w) - 1) * w
+    out = (bw @ p) / bw.sum(axis=1)
+    return out.reshape(np.shape(t)) if np.ndim(t) else float(out[0])
+
+
+def elevate(coefficients, degree):
+    """The same curve written with more handles (exact degree elevation in homogeneous form)."""
+    w = np.asarray(coefficients["weights"], dtype=float)
+    q = w * np.asarray(coefficients["handles"], dtype=float)
+    while len(w) - 1 < degree:
+        m = len(w)  # new degree
+        a = np.arange(m + 1) / m
+        w = np.concatenate([w, [0.0]]) * (1 - a) + np.concatenate([[0.0], w]) * a
+        q = np.concatenate([q, [0.0]]) * (1 - a) + np.concatenate([[0.0], q]) * a
+    return dict(coefficients, weights=list(w / w[0]), handles=list(q / w))
+
+
+class _Projection:
+    """The reduced problem: residual and Jacobian as functions of the searched log-weights."""
+
+    def __init__(self, basis, y, free, handle_lo, handle_hi, shape=0):
+        self.basis, self.y = basis, y
+        self.free = free  # indices of the weights being searched (others stay 1)
+        self.lo, self.hi = handle_lo, handle_hi
+        self.shape = shape  # 0 free handles, +1 non-decreasing, -1 non-increasing
+        m = basis.shape[1]
+        self.steps = np.tril(np.ones((m, m))) * (shape if shape else 1)
+        self.steps[:, 0] = 1.0
+        # bounds on the solved variables: the handles, or (first handle, increments >= 0)
+        self.lb, self.ub = np.full(m, float(handle_lo)), np.full(m, float(handle_hi))
+        if shape:
+            self.lb[1:], self.ub[1:] = 0.0, np.inf
+        self._key = None
+
+    def weights(self, theta):
+        w = np.ones(self.basis.shape[1])
+        w[self.free] = np.exp(theta)
+        return w
+
+    def solve(self, theta):
+        """Handles for these weights; caches phi, handles, fit and whether a bound is active."""
+        key = np.asarray(theta, dtype=float).tobytes()
+        if key == self._key:
+            return
+        bw = self.basis * self.weights(theta)
+        phi = bw / bw.sum(axis=1)[:, None]
+        design = phi if self.shape == 0 else phi @ self.steps
+        # normal equations on the small Gram matrix: tall LAPACK calls (QR, SVD) are slow
+        # under a threaded BLAS on a busy machine, small solves and matmuls are not
+        gram = design.T @ design
+        rhs = design.T @ self.y
+        z = np.linalg.solve(gram, rhs)
+        if np.any(z < self.lb) or np.any(z > self.ub):
+            # same minimiser as the tall problem: |A z - y|^2 = |L' z - L^-1 A'y|^2 + const
+            chol = np.linalg.cholesky(gram)
+            z = lsq_linear(chol.T, solve_triangular(chol, rhs, lower=True), bounds=(self.lb, self.ub), method="bvls").x
+        tiny = 1e-10
+        inactive = (z > self.lb + tiny) & (z < self.ub - tiny)
+        q = (design[:, inactive], gram[np.ix_(inactive, inactive)]) if inactive.any() else None
+        p = z if self.shape == 0 else self.steps @ z
+        self._key, self.phi, self.p, self.q = key, phi, p, q
+        self.f = phi @ p
+
+    def residual(self, theta):
+        self.solve(theta)
+        return self.f - self.y
+
+    def jacobian(self, theta):
+        self.solve(theta)
+        # d f / d log w_k at fixed handles is phi_k (p_k - f); with the handles at their
+        # optimum, project out what the handles still free to move would absorb (Kaufman).
+        g = self.phi[:, self.free] * (self.p[self.free][None, :] - self.f[:, None])
+        if self.q is not None:
+            a, gram = self.q
+            g = g - a @ np.linalg.solve(gram, a.T @ g)
+        return g
+
+
+def _starts(n_free, lo, hi, count, seed, interior):
+    """Start points: all weights equal, heavy interior weights (x4, x20), then seeded random."""
+    out = [np.clip(np.zeros(n_free), lo, hi)]
+    if interior.any():
+        for factor in (4.0, 20.0):
+            out.append(np.clip(np.where(interior, math.log(factor), 0.0), lo, hi))
+    rng = np.random.default_rng(seed)
+    while len(out) < count:
+        out.append(rng.uniform(lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo), n_free))
+    return out[: max(1, count)]
+
+
+def _setup(x, y, order, bounds):
+    if order < 1:
+        raise ValueError("BCM degree must be at least 1")
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    lx, rx = float(np.min(x)), float(np.ptp(x))
+    if rx <= 0:
+        raise ValueError("x must span a range")
+    # fit in normalised reference units (the curve commutes with affine maps of y)
+    y0, ys = float(np.min(y)), float(np.ptp(y)) or 1.0
+    yn = (y - y0) / ys
+    basis = bernstein((x - lx) / rx, order)
+    idx = np.arange(order + 1)
+    if bounds == "data":
+        free, lo, hi = idx[1:], -LN60, LN60
+        plo, phi = -WIDEN, 1.0 + WIDEN
+    elif bounds == "paper":
+        free, lo, hi = idx, 0.0, LN60
+        plo, phi = (PAPER_BOX[0] - y0) / ys, (PAPER_BOX[1] - y0) / ys
+    else:
+        raise ValueError("bounds must be 'data' or 'paper', not %r" % (bounds,))
+    interior = (free > 0) & (free < order)
+    return lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior
+
+
+def _local(problem, theta0, lo, hi, max_iter=200, rtol=1e-10):
+    """Projected Levenberg-Marquardt on the log-weights; returns (theta, cost).
+
+    Written out rather than scipy's least_squares because with at most ~15 unknowns the work is
+    a few tiny solves per step, and scipy's bookkeeping cost ten times the model evaluation.
+    """
+    theta = np.clip(np.asarray(theta0, dtype=float), lo, hi)
+    r = problem.residual(theta)
+    cost = float(r @ r)
+    if theta.size == 0:
+        return theta, cost
+    lam, quiet = 1e-3, 0
+    for _ in range(max_iter):
+        jac = problem.jacobian(theta)
+        grad, hess = jac.T @ r, jac.T @ jac
+        # a variable pressed against its bound by the gradient stays there this step
+        free = ~(((theta <= lo) & (grad > 0)) | ((theta >= hi) & (grad < 0)))
+        if not free.any():
+            break
+        hf, gf = hess[np.ix_(free, free)], grad[free]
+        damp = np.diag(np.diag(hf)) + 1e-12 * np.eye(gf.size)
+        while lam < 1e12:
+            step = np.zeros_like(theta)
+            try:
+                step[free] = -np.linalg.solve(hf + lam * damp, gf)
+            except np.linalg.LinAlgError:
+                lam *= 10
+                continue
+            trial = np.clip(theta + step, lo, hi)
+            rt = problem.residual(trial)
+            ct = float(rt @ rt)
+            if ct < cost:
+                break
+            lam *= 4
+        else:
+            break
+        if ct >= cost:
+            break
+        gain, moved = cost - ct, float(np.max(np.abs(trial - theta)))
+        theta, r, cost = trial, rt, ct
+        lam = max(lam / 5, 1e-12)
+        quiet = quiet + 1 if (gain <= rtol * cost or moved < 1e-9) else 0
+        if quiet >= 2:
+            break
+    problem.residual(theta)  # leave the cache at the answer
+    return theta, cost
+
+
+def _result(order, bounds, lx, rx, y0, ys, problem, theta, notes):
+    problem.solve(theta)
+    w = problem.weights(theta)
+    w = w / w[0]
+    coeffs = {
+        "lx": lx,
+        "rx": rx,
+        "weights": [float(v) for v in w],
+        "handles": [float(y0 + ys * v) for v in problem.p],
+    }
+    return FitResult(
+        model="bcm",
+        order=order,
+        n_params=2 * order + 1,  # n+1 handles and n weight ratios
+        coefficients=coeffs,
+        x_range=(lx, lx + rx),
+        curve=lambda xs, c=coeffs: evaluate(c, xs),
+        notes=notes,
+    )
+
+
+def check_points(x):
+    """Every input the curve can meet: all integer codes for ADC data, else a dense grid."""
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if np.all(np.asarray(x) == np.round(x)) and hi - lo <= 1 << 17:
+        return np.arange(math.ceil(lo), math.floor(hi) + 1, dtype=float)
+    return np.linspace(lo, hi, 4097)
+
+
+def reverses(coefficients, x):
+    """0 when the curve is monotone over every input of x's kind, else the largest step back."""
+    f = evaluate(coefficients, check_points(x))
+    d = np.diff(f)
+    trend = 1.0 if f[-1] >= f[0] else -1.0
+    worst = float(np.max(-trend * d)) if d.size else 0.0
+    return max(0.0, worst - 1e-12 * (abs(f[-1] - f[0]) or 1.0))
+
+
+def fit_bcm(x, y, order, bounds="data", starts=4, seed=0, monotone="check"):
+    """Fit a degree-`order` BCM to sorted (x, y); monotone = "check" | "force" | "off"."""
+    lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior = _setup(x, y, order, bounds)
+    notes = []
+    problem = _Projection(basis, yn, free, plo, phi)
+    best = None
+    if monotone != "force":
+        for theta0 in _starts(free.size, lo, hi, starts, seed, interior):
+            theta, cost = _local(problem, theta0, lo, hi)
+            if best is None or cost < best[1]:
+                best = (theta, cost)
+        result = _result(order, bounds, lx, rx, y0, ys, problem, best[0], notes)
+        if monotone == "off":
+            return result
+        back = reverses(result.coefficients, x)
+        if back == 0.0:
+            return result
+        notes.append(
+            "the best curve reversed by up to %.3g reference units, so it was refitted with monotone handles" % back
+        )
+    trend = 1.0 if np.polyfit(x, y, 1)[0] >= 0 else -1.0
+    shaped = _Projection(basis, yn, free, plo, phi, shape=int(trend))
+    seeds = _starts(free.size, lo, hi, starts, seed, interior) + ([best[0]] if best else [])
+    best_m = None
+    for theta0 in seeds:
+        theta, cost = _local(shaped, theta0, lo, hi)
+        if best_m is None or cost < best_m[1]:
+            best_m = (theta, cost)
+    if monotone == "force":
+        notes.append("handles constrained to be monotone")
+    return _result(order, bounds, lx, rx, y0, ys, shaped, best_m[0], notes)
+
+
+def fit_bcm_global(x, y, order, bounds="data", maxiter=60, popsize=12, seed=0, tol=1e-8):
+    """Slow reference fit: differential evolution over the log-weights, then a local polish."""
+    lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, _ = _setup(x, y, order, bounds)
+    problem = _Projection(basis, yn, free, plo, phi)
+
+    def cost(theta):
+        return float(np.sum(problem.residual(theta) ** 2))
+
+    de = differential_evolution(
+        cost, [(lo, hi)] * free.size, maxiter=maxiter, popsize=popsize, seed=seed, tol=tol, polish=False
+    )
+    theta, _ = _local(problem, np.clip(de.x, lo, hi), lo, hi)
+    if cost(theta) > de.fun:
+        theta = de.x
+    return _result(order, bounds, lx, rx, y0, ys, problem, theta, ["global search (differential evolution)"])
