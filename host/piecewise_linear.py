@@ -20,7 +20,7 @@ from host.fit_result import FitResult
 # Weight of the slope-change penalty relative to the data term. It only decides values that the
 # data leave free (a knot span with no samples): those knots then lie on the straight line
 # through their neighbours instead of the minimum-norm (zero) value.
-_TIE_BREAK = 1e-9
+_TIE_BREAK = 1e-10
 
 
 def hat_weights(x, knots_x):
