@@ -71,33 +71,47 @@ def test_closed_loop_move_on_the_flashed_board(flashed, capsys):
         assert client.call("status")["mode"] == "idle"  # the move ends with the motor off
 
 
+# (progress line the flash printed, extra delay, what must be on the board after the kill)
+KILL_PLAN = [
+    ("compiling", 0.0, "old"),
+    ("copying", 0.1, "old"),
+    ("copying", 0.5, "old"),
+    ("copying", 1.0, "either"),
+    ("installing", 0.0, "either"),  # the swap exec may or may not have reached the board
+    ("installing", 0.05, "either"),
+    ("verifying", 0.0, "new"),
+    ("resetting", 0.0, "new"),
+]
+
+
 def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, calibrations):
     board, _ = flashed
-    old_path, old_crc = calibrations["a"]
-    new_path, new_crc = calibrations["b"]
-    command = [sys.executable, "-m", "host", "flash", "--port", board.path, "--calibration", str(new_path)]
-    start = time.monotonic()
-    subprocess.run(command, check=True, capture_output=True)  # how long a whole flash takes here
-    full = time.monotonic() - start
-    flash(board.path, "sim", str(old_path), progress=lambda s: None)
-    seen = set()
-    for fraction in (0.15, 0.45, 0.7, 0.85, 0.95, 1.05):
-        delay = fraction * full
-        proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    files = {crc: path.read_bytes() for path, crc in calibrations.values()}
+    current = calibrations["a"][1]  # what `flashed` installed
+    outcomes = []
+    for marker, delay, expect in KILL_PLAN:
+        new_path, new_crc = next(v for v in calibrations.values() if v[1] != current)
+        proc = subprocess.Popen(
+            [sys.executable, "-u", "-m", "host", "flash", "--port", board.path, "--calibration", str(new_path)],
+            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+        )
+        for line in proc.stdout:
+            if line.startswith(marker):
+                break
         time.sleep(delay)
         os.killpg(proc.pid, signal.SIGKILL)  # the host process and its mpremote, mid-flight
         proc.wait()
+        proc.stdout.close()
         time.sleep(0.3)  # a swap already received by the board runs to its end
         on_board = (board.root / "calibration.json").read_bytes()
-        assert on_board in (old_path.read_bytes(), new_path.read_bytes())
+        assert on_board in (files[current], files[new_crc])
         with BoardClient(board.path, timeout=1.0) as client:  # it boots and answers
             crc = client.status_info["calibration_crc"]
-        assert crc in (old_crc, new_crc)
-        assert crc == (new_crc if on_board == new_path.read_bytes() else old_crc)
-        seen.add(crc)
-        # Put the old calibration back for the next round when the new one got through.
-        if crc == new_crc:
-            flash(board.path, "sim", str(old_path), progress=lambda s: None)
-    print("kill outcomes:", {"old" if c == old_crc else "new" for c in seen})
-    assert old_crc in seen  # some kills landed before the swap (the interesting case)
-    assert new_crc in seen  # and some after it
+            assert client.status_info["calibration_error"] is None
+        assert crc in (current, new_crc) and files[crc] == on_board
+        got = "new" if crc == new_crc else "old"
+        assert expect in (got, "either"), (marker, delay, got)
+        outcomes.append((marker, delay, got))
+        current = crc
+    print("kill outcomes:", outcomes)
+    assert {o[2] for o in outcomes} == {"old", "new"}
