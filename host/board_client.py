@@ -235,6 +235,7 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
     start = time.monotonic()
     inside_since = None
     value = None
+    next_progress = start
     try:
         while time.monotonic() - start < timeout_s:
             board.heartbeat_if_due()
@@ -249,7 +250,8 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
                     return True, value, now - start
             else:
                 inside_since = None
-            if progress:
+            if progress and now >= next_progress:
+                next_progress = now + 0.2  # a readable refresh, not one line per frame
                 progress(value, now - start)
         return False, value, time.monotonic() - start
     finally:

@@ -207,3 +207,23 @@ def test_port_sim_runs_a_command_on_a_throwaway_board(capsys):
     assert cli.main(["status", "--port", "sim"]) == 0
     out = capsys.readouterr().out
     assert "version            %s" % VERSION in out and "board              sim" in out
+
+
+def test_log_ctrl_c_ends_with_a_complete_file_and_a_summary(vboard, tmp_path):
+    import signal
+
+    out = tmp_path / "interrupted.csv"
+    proc = subprocess.Popen([sys.executable, "-m", "host", "log", "--port", vboard.path, "--out", str(out), "--rate", "500"],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 20000):
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    stdout, _ = proc.communicate(timeout=20)
+    assert proc.returncode == 0 and "(interrupted)" in stdout and "lost frames 0" in stdout
+    lines = out.read_text().splitlines()
+    assert lines[0].split(",") == list(P.FIELDS)
+    assert all(len(line.split(",")) == len(P.FIELDS) for line in lines[1:])  # no torn last row
+    t = load(out)["t_us"]
+    assert len(t) > 200 and set(np.diff(t)) == {2000}
+    assert "%d samples" % len(t) in stdout
