@@ -70,8 +70,9 @@ def elevate(coefficients, degree):
 class _Projection:
     """The reduced problem: residual and Jacobian as functions of the searched log-weights."""
 
-    def __init__(self, basis, y, free, handle_lo, handle_hi, shape=0):
-        self.basis, self.y = basis, y
+    def __init__(self, basis, y, free, handle_lo, handle_hi, shape=0, wt=None):
+        self.wt = np.ones(len(y)) if wt is None else wt  # sqrt of how many samples a row stands for
+        self.basis, self.y = basis, y * self.wt
         self.free = free  # indices of the weights being searched (others stay 1)
         self.lo, self.hi = handle_lo, handle_hi
         self.shape = shape  # 0 free handles, +1 non-decreasing, -1 non-increasing
@@ -96,7 +97,7 @@ class _Projection:
             return
         bw = self.basis * self.weights(theta)
         phi = bw / bw.sum(axis=1)[:, None]
-        design = phi if self.shape == 0 else phi @ self.steps
+        design = (phi if self.shape == 0 else phi @ self.steps) * self.wt[:, None]
         # normal equations on the small Gram matrix: tall LAPACK calls (QR, SVD) are slow
         # under a threaded BLAS on a busy machine, small solves and matmuls are not
         gram = design.T @ design
@@ -115,13 +116,13 @@ class _Projection:
 
     def residual(self, theta):
         self.solve(theta)
-        return self.f - self.y
+        return self.f * self.wt - self.y
 
     def jacobian(self, theta):
         self.solve(theta)
         # d f / d log w_k at fixed handles is phi_k (p_k - f); with the handles at their
         # optimum, project out what the handles still free to move would absorb (Kaufman).
-        g = self.phi[:, self.free] * (self.p[self.free][None, :] - self.f[:, None])
+        g = self.phi[:, self.free] * ((self.p[self.free][None, :] - self.f[:, None]) * self.wt[:, None])
         if self.q is not None:
             a, gram = self.q
             g = g - a @ np.linalg.solve(gram, a.T @ g)
@@ -165,7 +166,7 @@ def _setup(x, y, order, bounds):
     return lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior
 
 
-def _local(problem, theta0, lo, hi, max_iter=200, rtol=1e-10):
+def _local(problem, theta0, lo, hi, max_iter=200, rtol=1e-8):
     """Projected Levenberg-Marquardt on the log-weights; returns (theta, cost).
 
     Written out rather than scipy's least_squares because with at most ~15 unknowns the work is
@@ -251,18 +252,42 @@ def reverses(coefficients, x):
     return max(0.0, worst - 1e-12 * (abs(f[-1] - f[0]) or 1.0))
 
 
-def fit_bcm(x, y, order, bounds="data", starts=4, seed=0, monotone="check"):
-    """Fit a degree-`order` BCM to sorted (x, y); monotone = "check" | "force" | "off"."""
-    lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior = _setup(x, y, order, bounds)
-    notes = []
-    problem = _Projection(basis, yn, free, plo, phi)
+def _binned(t, y, max_points):
+    """Equal-count bin means of sorted data and sqrt(count) row weights (for the weight search)."""
+    if t.size <= max_points:
+        return t, y, None
+    edges = np.linspace(0, t.size, max_points + 1).astype(int)
+    counts = np.diff(edges).astype(float)
+    tm = np.add.reduceat(t, edges[:-1]) / counts
+    ym = np.add.reduceat(y, edges[:-1]) / counts
+    return tm, ym, np.sqrt(counts)
+
+
+def _search(make, starts, lo, hi):
     best = None
+    for theta0 in starts:
+        theta, cost = _local(make(), theta0, lo, hi)
+        if best is None or cost < best[1]:
+            best = (theta, cost)
+    return best[0]
+
+
+def fit_bcm(x, y, order, bounds="data", starts=4, seed=0, monotone="check", max_search_points=4000):
+    """Fit a degree-`order` BCM to sorted (x, y); monotone = "check" | "force" | "off".
+
+    Above `max_search_points` samples the weights are searched on that many bin means (the
+    handles are always solved on every sample), which keeps 30,000-sample sweeps fast.
+    """
+    lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior = _setup(x, y, order, bounds)
+    t = (np.asarray(x, dtype=float) - lx) / rx
+    tb, yb, wt = _binned(t, yn, int(max_search_points))
+    basis_b = basis if wt is None else bernstein(tb, order)
+    notes = [] if wt is None else ["weights searched on %d bin means of the %d samples" % (tb.size, t.size)]
+    start_points = _starts(free.size, lo, hi, starts, seed, interior)
+    theta = None
     if monotone != "force":
-        for theta0 in _starts(free.size, lo, hi, starts, seed, interior):
-            theta, cost = _local(problem, theta0, lo, hi)
-            if best is None or cost < best[1]:
-                best = (theta, cost)
-        result = _result(order, bounds, lx, rx, y0, ys, problem, best[0], notes)
+        theta = _search(lambda: _Projection(basis_b, yb, free, plo, phi, wt=wt), start_points, lo, hi)
+        result = _result(order, bounds, lx, rx, y0, ys, _Projection(basis, yn, free, plo, phi), theta, notes)
         if monotone == "off":
             return result
         back = reverses(result.coefficients, x)
@@ -271,17 +296,12 @@ def fit_bcm(x, y, order, bounds="data", starts=4, seed=0, monotone="check"):
         notes.append(
             "the best curve reversed by up to %.3g reference units, so it was refitted with monotone handles" % back
         )
-    trend = 1.0 if np.polyfit(x, y, 1)[0] >= 0 else -1.0
-    shaped = _Projection(basis, yn, free, plo, phi, shape=int(trend))
-    seeds = _starts(free.size, lo, hi, starts, seed, interior) + ([best[0]] if best else [])
-    best_m = None
-    for theta0 in seeds:
-        theta, cost = _local(shaped, theta0, lo, hi)
-        if best_m is None or cost < best_m[1]:
-            best_m = (theta, cost)
+    trend = 1 if np.polyfit(t, yn, 1)[0] >= 0 else -1
+    seeds = start_points + ([theta] if theta is not None else [])
+    theta_m = _search(lambda: _Projection(basis_b, yb, free, plo, phi, shape=trend, wt=wt), seeds, lo, hi)
     if monotone == "force":
         notes.append("handles constrained to be monotone")
-    return _result(order, bounds, lx, rx, y0, ys, shaped, best_m[0], notes)
+    return _result(order, bounds, lx, rx, y0, ys, _Projection(basis, yn, free, plo, phi, shape=trend), theta_m, notes)
 
 
 def fit_bcm_global(x, y, order, bounds="data", maxiter=60, popsize=12, seed=0, tol=1e-8):
