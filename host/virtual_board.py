@@ -16,6 +16,7 @@ with no host attached does, so the firmware never blocks on a missing client.
 import fcntl
 import json
 import os
+import select
 import shutil
 import signal
 import subprocess
@@ -114,6 +115,7 @@ class VirtualBoard:
         self.path = None
         self.boots = 0
         self.dropped_bytes = 0
+        self._client_absent = False
         self._child = None
         self._inner = None
         self._master = self._slave = None
@@ -196,13 +198,28 @@ class VirtualBoard:
             self._inner = None
 
     # -- relay ---------------------------------------------------------------------------
-    def _to_client(self, data):
-        try:
-            os.write(self._master, data)
-        except BlockingIOError:
-            self.dropped_bytes += len(data)  # nobody is reading: a USB port drops it too
-        except OSError:
-            self.dropped_bytes += len(data)
+    def _to_client(self, data, patience_s=0.1):
+        """Write all of `data` to the client side; wait up to patience_s for a slow reader (the
+        firmware then waits too, as on a USB port with a busy host), then drop the rest (nobody
+        is reading: a USB port drops it too)."""
+        view = memoryview(data)
+        deadline = None
+        patience_s = 0.0 if self._client_absent else patience_s
+        while view:
+            try:
+                view = view[os.write(self._master, view) :]
+                continue
+            except BlockingIOError:
+                pass
+            except OSError:
+                break
+            now = time.monotonic()
+            deadline = deadline or now + patience_s
+            if now >= deadline:
+                self._client_absent = True  # stop waiting until the client talks again
+                break
+            select.select([], [self._master], [], deadline - now)
+        self.dropped_bytes += len(view)
 
     def _from_child(self, data):
         self._tail = (self._tail + data)[-64:]
@@ -228,8 +245,6 @@ class VirtualBoard:
             self._raw_mode = False
 
     def _relay(self):
-        import select
-
         poller = select.poll()
         poller.register(self._master, select.POLLIN)
         registered_inner = None
@@ -248,6 +263,7 @@ class VirtualBoard:
                         data = os.read(self._master, 4096)
                     except (BlockingIOError, OSError):
                         continue
+                    self._client_absent = False
                     if data and self._inner is not None:
                         try:
                             os.write(self._inner, data)
