@@ -176,12 +176,16 @@ def plot(rows, path, title, n_samples, noise=None):
     import matplotlib.pyplot as plt
 
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
-    for name in dict.fromkeys(r["model"] for r in rows):
+    # models that coincide (pcm, pcm-raw and cheb are one polynomial) stay visible by style
+    styles = [("o", "-"), ("s", "--"), ("^", ":"), ("v", "-."), ("D", "-"), ("x", "--"), ("+", ":"), ("*", "-.")]
+    for i, name in enumerate(dict.fromkeys(r["model"] for r in rows)):
         mine = [r for r in rows if r["model"] == name and not math.isnan(r["norm2"])]
         if not mine:
             continue
-        ax1.plot([r["order"] for r in mine], [r["norm2"] for r in mine], "o-", ms=3, label=name)
-        ax2.plot([r["n_params"] for r in mine], [r["rms"] for r in mine], "o-", ms=3, label=name)
+        marker, line = styles[i % len(styles)]
+        kw = dict(marker=marker, ls=line, ms=4, label=name)
+        ax1.plot([r["order"] for r in mine], [r["norm2"] for r in mine], **kw)
+        ax2.plot([r["n_params"] for r in mine], [r["rms"] for r in mine], **kw)
     if noise:
         ax1.axhline(noise * math.sqrt(n_samples), color="k", ls="--", lw=1, label="noise floor")
         ax2.axhline(noise, color="k", ls="--", lw=1, label="noise floor")

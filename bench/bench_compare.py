@@ -1,0 +1,52 @@
+"""Wall time of `host compare` over orders 2-15 with every default model, on the example sweep.
+
+    .venv/bin/python bench/bench_compare.py [SWEEP.csv] [--runs 1]
+
+Runs the real CLI in a subprocess twice per run: with the environment as it is, and with
+OPENBLAS_NUM_THREADS=1 (small least-squares problems are much faster single-threaded when the
+CPUs are busy). Prints the per-model fit times the CLI reports and the total wall time.
+"""
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def run_once(sweep, env_extra):
+    env = dict(os.environ, **env_extra)
+    with tempfile.TemporaryDirectory() as out:
+        t0 = time.perf_counter()
+        proc = subprocess.run([sys.executable, "-m", "host", "compare", str(sweep), "--orders", "2-15", "--out", out],
+                              capture_output=True, text=True, cwd=REPO, env=env)
+        wall = time.perf_counter() - t0
+    if proc.returncode != 0:
+        raise SystemExit(proc.stderr)
+    models = re.findall(r"\] (\S+)\s+fitted orders \S+ in ([0-9.]+) s", proc.stderr)
+    fits = re.search(r"(\d+) fits in ([0-9.]+) s", proc.stdout)
+    return wall, float(fits.group(2)), models
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("sweep", nargs="?", default=str(REPO / "examples" / "sweep_60mm.csv"))
+    ap.add_argument("--runs", type=int, default=1)
+    args = ap.parse_args(argv)
+    print("host compare %s --orders 2-15 (models bcm,pcm,cheb,spline,lut,pwl); %d CPUs; load %s"
+          % (Path(args.sweep).name, os.cpu_count(), " ".join("%.1f" % v for v in os.getloadavg())))
+    for label, extra in (("default threads", {}), ("OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"})):
+        for _ in range(args.runs):
+            wall, fitting, models = run_once(args.sweep, extra)
+            per_model = ", ".join("%s %.2f s" % (m, float(s)) for m, s in models)
+            print("%-24s wall %.2f s (fitting %.2f s): %s" % (label, wall, fitting, per_model))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
