@@ -52,3 +52,32 @@ def estimate_noise(x, y, direction=None):
     if count == 0:
         raise ValueError("need at least 3 points (per direction) to estimate noise")
     return float(np.sqrt(total / count))
+
+
+def estimate_hysteresis(x, y, direction):
+    """Half the mean reference gap between the +1 and -1 runs at equal x (0 without both runs).
+
+    Each -1 sample is compared with the +1 run interpolated at its x (the runs are dense, so
+    interpolation error is far below the noise, which averages out over the run).
+    """
+    if direction is None:
+        return 0.0
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
+    d = np.asarray(direction)
+    fwd, back = d == 1, d == -1
+    if np.count_nonzero(fwd) < 3 or np.count_nonzero(back) < 3:
+        return 0.0
+    xf, inverse = np.unique(x[fwd], return_inverse=True)
+    yf = np.bincount(inverse, weights=y[fwd]) / np.bincount(inverse)
+    inside = back & (x >= xf[0]) & (x <= xf[-1])
+    if not inside.any():
+        return 0.0
+    return float(np.mean(np.interp(x[inside], xf, yf) - y[inside]) / 2)
+
+
+def curve_floor(x, y, direction=None):
+    """The lowest RMS one curve of x alone can reach: noise plus hysteresis it cannot follow."""
+    noise = estimate_noise(x, y, direction)
+    h = estimate_hysteresis(x, y, direction)
+    return float(np.hypot(noise, h))
