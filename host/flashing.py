@@ -178,6 +178,8 @@ def file_crc(path):
 
 def flash(port, board_name="sim", calibration=None, progress=print):
     """Install firmware, board file and (optionally) calibration on the board at `port`."""
+    if "/" in port and not Path(port).exists():
+        raise UserError("serial port %s not found (is the board plugged in? try `host sim`)" % port)
     board_path, board = resolve_board(board_name)
     if calibration is not None and not Path(calibration).is_file():
         raise UserError("calibration file not found: %s" % calibration)
