@@ -1,0 +1,120 @@
+"""`host fit` from the command line: JSON fields, plots, calibration files, one-line errors."""
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from host.cli import main
+from host.example_sweep import DEFAULT_PATH
+
+EXAMPLE = str(DEFAULT_PATH)
+
+
+def _json(capsys, *argv):
+    assert main(["fit", *argv, "--json"]) == 0
+    return json.loads(capsys.readouterr().out)
+
+
+def test_json_has_the_promised_fields(capsys):
+    out = _json(capsys, EXAMPLE)
+    for key in ("model", "order", "rms", "max_abs", "monotone", "noise_floor", "n_samples", "n_excluded", "fit_seconds"):
+        assert key in out
+    assert out["model"] == "bcm" and out["order"] == 3 and out["monotone"] is True
+    assert out["n_samples"] + out["n_excluded"] == out["n_input"] == 1800
+    assert out["exclusions"]["clipped_low"] > 0 and out["exclusions"]["clipped_high"] > 0
+    assert 0 < out["noise_floor"] < out["rms"] < 0.5
+    assert 0 < out["fit_seconds"] <= out["total_seconds"]
+    assert len(out["coefficients"]["handles"]) == 4 and out["coefficients"]["weights"][0] == 1.0
+    # the example's backlash (50 um between directions) is found: +-25 um
+    assert abs(out["hysteresis"] - 0.025) < 0.004
+
+
+def test_summary_is_readable(capsys):
+    assert main(["fit", EXAMPLE, "--order", "2"]) == 0
+    text = capsys.readouterr().out
+    assert "model: bcm order 2" in text and "rms / noise floor" in text and "monotone: yes" in text
+
+
+def test_paper_bounds_option(capsys):
+    out = _json(capsys, EXAMPLE, "--bounds", "paper")
+    assert min(out["coefficients"]["handles"]) >= 0 and max(out["coefficients"]["handles"]) <= 60
+
+
+def test_plot_writes_a_png(tmp_path, capsys):
+    png = tmp_path / "fit.png"
+    out = _json(capsys, EXAMPLE, "--plot", str(png))
+    assert out["plot"] == str(png)
+    data = png.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10000
+
+
+def test_auto_reports_a_reason(capsys):
+    out = _json(capsys, EXAMPLE, "--model", "auto")
+    assert out["model"] in ("bcm", "pwl") and out["n_params"] <= 12
+    assert "noise floor" in out["auto_reason"]
+
+
+def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
+    from firmware.calibration import convert, load_calibration
+    from host.rational_bezier import evaluate
+
+    path = tmp_path / "calib.json"
+    first = _json(capsys, EXAMPLE, "--out", str(path))
+    assert first["calibration"]["adc_bits"] == 12 and path.exists()
+    # a lower-degree BCM goes in as the same curve elevated to degree 3; pot1 is kept
+    second = _json(capsys, EXAMPLE, "--order", "2", "--out", str(path), "--pot", "pot2")
+    cal = load_calibration(str(path))
+    assert cal.crc == second["calibration"]["crc32"]
+    assert cal.pot1[0] == "bcm3" and cal.pot2[0] == "bcm3"
+    for fit, (kind, k) in ((first, cal.pot1), (second, cal.pot2)):
+        for code in (0, 150, 2048, 3950, 4095):
+            want_um = 1000 * evaluate(fit["coefficients"], code)
+            assert abs(convert(kind, code, k) - want_um) < 8  # within the export's half-LSB bound
+
+
+def _bad(tmp_path, name, text):
+    p = tmp_path / name
+    p.write_text(text)
+    return str(p)
+
+
+BAD_FILES = {
+    "empty.csv": "",
+    "header_only.csv": "raw,reference\n",
+    "no_reference.csv": "raw,pos\n1,2\n",
+    "text.csv": "raw,reference\n1,2\n3,four\n",
+    "few.csv": "raw,reference\n" + "".join("%d,%d\n" % (i * 400, i) for i in range(10)),
+    "narrow.csv": "raw,reference\n" + "".join("%d,%d\n" % (2000 + i, i) for i in range(50)),
+}
+
+
+@pytest.mark.parametrize("name", sorted(BAD_FILES))
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, name):
+    assert main(["fit", _bad(tmp_path, name, BAD_FILES[name])]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("error: ") and "\n" not in err
+
+
+def test_missing_file_and_bad_order(tmp_path, capsys):
+    assert main(["fit", str(tmp_path / "missing.csv")]) == 2
+    assert "not found" in capsys.readouterr().err
+    assert main(["fit", EXAMPLE, "--order", "0"]) == 2
+    assert "--order" in capsys.readouterr().err
+
+
+def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
+    raw = np.linspace(0.1, 3.2, 40)
+    text = "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw)
+    assert main(["fit", _bad(tmp_path, "volts.csv", text), "--out", str(tmp_path / "c.json")]) == 2
+    assert "--adc-bits" in capsys.readouterr().err
+
+
+def test_real_console_script(tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "host", "fit", EXAMPLE, "--json"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["model"] == "bcm"
+    proc = subprocess.run([sys.executable, "-m", "host", "fit", str(tmp_path / "x.csv")], capture_output=True, text=True)
+    assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
