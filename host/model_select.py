@@ -61,7 +61,7 @@ def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLE
         tried.append({"model": model, "order": order, "n_params": r.n_params, "rms": r.rms})
         if target is not None and r.rms <= target and r.monotone:
             reason = (
-                "%s order %d is the cheapest firmware model (%d parameters) within %.0f %% of the noise floor "
+                "%s order %d is the cheapest firmware model (%d parameters) within %.0f %% of the floor "
                 "(rms %.4g vs floor %.4g)" % (model, order, r.n_params, 100 * tolerance, r.rms, noise)
             )
             return Selection(r, reason, tried)
@@ -70,7 +70,7 @@ def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLE
     if target is None:
         why = "the noise floor is unknown"
     else:
-        why = "no model within %d parameters got within %.0f %% of the noise floor %.4g" % (budget, 100 * tolerance, noise)
+        why = "no model within %d parameters got within %.0f %% of the floor %.4g" % (budget, 100 * tolerance, noise)
     reason = "%s, so the most accurate one was chosen: %s order %d (%d parameters, rms %.4g%s)" % (
         why,
         best.model,

@@ -54,7 +54,7 @@ def test_plot_writes_a_png(tmp_path, capsys):
 def test_auto_reports_a_reason(capsys):
     out = _json(capsys, EXAMPLE, "--model", "auto")
     assert out["model"] in ("bcm", "pwl") and out["n_params"] <= 12
-    assert "noise floor" in out["auto_reason"]
+    assert "floor" in out["auto_reason"]
 
 
 def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
@@ -118,3 +118,18 @@ def test_real_console_script(tmp_path):
     assert json.loads(proc.stdout)["model"] == "bcm"
     proc = subprocess.run([sys.executable, "-m", "host", "fit", str(tmp_path / "x.csv")], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+
+
+def test_demo_writes_report_plots_and_calibration(tmp_path, capsys):
+    from firmware.calibration import load_calibration
+
+    out = tmp_path / "demo"
+    assert main(["demo", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    assert printed.strip().splitlines()[-1] == "report: %s" % (out / "report.md")
+    report = (out / "report.md").read_text()
+    assert "| paper's BCM | bcm 3 |" in report and "Auto selection:" in report
+    for png in ("fit.png", "fit_auto.png"):
+        assert (out / png).read_bytes()[:4] == b"\x89PNG"
+    cal = load_calibration(str(out / "calibration.json"))
+    assert cal.pot1[0] in ("bcm3", "pwl") and cal.pot2[0] == cal.pot1[0]
