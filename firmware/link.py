@@ -37,6 +37,8 @@ class Link:
     def __init__(self, app, stdin=None, write=None):
         self.app = app
         self.write = write or _stdout_writer()
+        # Poll sys.stdin itself (pollable on every port), read raw bytes from its buffer.
+        self._pollable = stdin if stdin is not None else sys.stdin
         self._stdin = stdin if stdin is not None else getattr(sys.stdin, "buffer", sys.stdin)
         self._poller = None
         self._line = bytearray(_MAX_LINE + 1)
@@ -70,7 +72,7 @@ class Link:
     def read_input(self):
         if self._poller is None:
             self._poller = select.poll()
-            self._poller.register(self._stdin, select.POLLIN)
+            self._poller.register(self._pollable, select.POLLIN)
         byte = self._byte
         budget = _INPUT_PER_POLL
         while budget > 0 and self._ready():
