@@ -115,3 +115,18 @@ def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, cali
         current = crc
     print("kill outcomes:", outcomes)
     assert {o[2] for o in outcomes} == {"old", "new"}
+
+
+def test_board_main_restores_a_calibration_left_aside_by_an_interrupted_fat_swap(tmp_path, mpy):
+    # The FAT path of the swap moves calibration.json to .old before moving the new one in;
+    # interrupted between the two, the next boot must put the old one back, and must not touch
+    # a calibration that is in place.
+    (tmp_path / "calibration.json.old").write_text("OLD")
+    (tmp_path / "other.json").write_text("LIVE")
+    (tmp_path / "other.json.old").write_text("STALE")
+    proc = mpy(
+        "import os\nos.chdir(%r)\nfrom firmware.board_main import recover_calibration\n"
+        "recover_calibration('calibration.json')\nrecover_calibration('other.json')\n"
+        "print(open('calibration.json').read(), open('other.json').read(), sorted(os.listdir()))\n" % str(tmp_path)
+    )
+    assert proc.stdout.split() == ["OLD", "LIVE", "['calibration.json',", "'other.json',", "'other.json.old']"]
