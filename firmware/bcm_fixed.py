@@ -31,7 +31,7 @@ intermediate exceeds 2**29 + 2**28. See docs/fixed-point.md for the bound analys
 measured figures.
 """
 
-from firmware.portable import const
+from firmware.portable import const, native
 
 _ONE = const(131072)  # 1.0 in Q17
 _HALF = const(65536)
@@ -39,6 +39,7 @@ _HALF = const(65536)
 LENGTH = const(12)
 
 
+@native  # 2-3x faster under MicroPython, bit-identical (same int object semantics)
 def bcm3(code, k):
     """Position in um of ADC `code` for the exported BCM-3 constants `k` (layout above)."""
     d = (code << k[0]) - k[1]

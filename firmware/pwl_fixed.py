@@ -18,7 +18,10 @@ Rounding is floor(v + 1/2) via // (floor on both interpreters, also for negative
 at a knot is exactly the stored knot value, so a monotone table stays monotone.
 """
 
+from firmware.portable import native
 
+
+@native  # 2-3x faster under MicroPython, bit-identical (same int object semantics)
 def pwl(code, k):
     """Position in um of ADC `code` for the exported table `k` (layout above)."""
     n = k[0]

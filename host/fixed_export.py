@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from firmware import bcm_fixed, poly_fixed, pwl_fixed
+from host.rational_bezier import evaluate as bcm_float  # the float64 reference curve
 
 LIMIT = 2**30  # the 31-bit small-int range of a 32-bit MicroPython port
 UM_PER_MM = 1000.0
@@ -135,16 +136,6 @@ def _finish(kind, k, func, inputs, reference, bound, what, tracked=None):
 
 
 # ---------------------------------------------------------------- BCM-3
-
-
-def bcm_float(coefficients, x):
-    """The rational Bernstein curve of `coefficients` at x (float64, t clamped to [0, 1])."""
-    w = np.asarray(coefficients["weights"], dtype=float)
-    p = np.asarray(coefficients["handles"], dtype=float)
-    n = len(w) - 1
-    t = np.clip((np.asarray(x, dtype=float) - coefficients["lx"]) / coefficients["rx"], 0.0, 1.0)
-    basis = np.stack([math.comb(n, i) * t**i * (1.0 - t) ** (n - i) for i in range(n + 1)])
-    return (basis * (w * p)[:, None]).sum(axis=0) / (basis * w[:, None]).sum(axis=0)
 
 
 def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
@@ -303,6 +294,8 @@ def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=
     shift = np.polynomial.Polynomial([xc / in_scale, 1.0 / in_scale])
     q = (np.polynomial.Polynomial(a[::-1]) * out_scale)(shift).coef
     q = np.concatenate([q, np.zeros(n + 1 - len(q))])
+    while n > 0 and q[n] == 0:  # leading zeros would only cost exponent range
+        n -= 1
     # Exponents: |R_j| = |r_j(u)| 2**E_j <= 2**29 and, for j >= 1, |R_j| * max(256, |uh|) <= 2**29
     # (the firmware takes R_j * u in halves, u = uh * 2**8 + ul), where
     # r_j(u) = sum_(i>=j) q_i u^(i-j) is the Horner accumulator. Up to 200,001 integer inputs
@@ -320,7 +313,7 @@ def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=
         else:
             mj = sum(abs(q[i]) * float(hw) ** (i - j) for i in range(j, n + 1))
         mj *= max(256, (hw >> 8) + 1) if j >= 1 else 1
-        lim.append(60 if mj == 0 else math.floor(math.log2(2**29 / mj)))
+        lim.append(200 if mj == 0 else min(200, math.floor(29 - math.log2(mj))))
     e = [0] * (n + 1)
     e[n] = lim[n]
     for j in range(n - 1, -1, -1):

@@ -1,0 +1,131 @@
+"""Figures for docs/fixed-point.md: accuracy, worst intermediate and speed of the firmware's math.
+
+    .venv/bin/python bench/bench_fixed_eval.py [--random N]
+
+Accuracy is measured at every ADC code against float64 (host/fixed_export.py), the worst
+intermediate by running the firmware functions on tracking ints, and the speed under the real
+MicroPython unix port (x64; a board is 10-50x slower, scale accordingly).
+"""
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+
+from host.example_sweep import simulate_sweep  # noqa: E402
+from host.fixed_export import export_bcm3, export_curve_table, export_poly, export_pwl  # noqa: E402
+from host.rational_bezier import evaluate, fit_bcm  # noqa: E402
+from micropython_runner import REPO, run_micropython  # noqa: E402
+
+KNEE = {"lx": 60.0, "rx": 3950.0, "weights": [1.0, 12.0, 12.0, 1.0], "handles": [0.0, 1.5, 58.5, 60.0]}
+POLYS = {
+    "Df_hat(D1) um->um": ([-1.922222e-6, 2.632e-4, -1.63e-2, 0.46, -4.6], (0.0, 60.0)),
+    "F0(d) um->mN": ([0.65, 12.37, 2.08], (-2.0, 6.0)),
+    "d(F0) mN->um": ([0.00091, 0.070, -0.18], (-20.0, 80.0)),
+}
+
+
+def row(name, k, unit="um"):
+    print(
+        "  %-34s max error %6.3f %s (bound %6.3f)  worst intermediate 2**%.3f  %d words"
+        % (name, k.max_error, unit, k.bound, np.log2(max(k.max_intermediate, 1)), len(k))
+    )
+
+
+def sweep_fits():
+    _, raw, ref, _ = simulate_sweep()
+    keep = (raw > 0) & (raw < 4095)
+    order = np.argsort(raw[keep], kind="stable")
+    x, y = raw[keep][order].astype(float), ref[keep][order]
+    return x, y
+
+
+def accuracy(n_random):
+    print("accuracy against float64 at every 12-bit code (bound 0.5 LSB = 0.5 * span / 4096):")
+    row("bcm3, SPEC-like knee curve", export_bcm3(KNEE, 12))
+    x, y = sweep_fits()
+    t0 = time.perf_counter()
+    fit3 = fit_bcm(x, y, 3)
+    row("bcm3, fit to host.example_sweep", export_bcm3(fit3.coefficients, 12))
+    fit5 = fit_bcm(x, y, 5)
+    k5 = export_curve_table(fit5, 12)
+    row("table of the degree-5 fit (%d knots)" % k5[0], k5)
+    row("pwl, 4 knots", export_pwl([100, 500, 3000, 3900], [0, 5, 55, 60], 12))
+    print("  (fits took %.1f s)" % (time.perf_counter() - t0))
+    rng = np.random.default_rng(1)
+    errs, ratios, peaks, refused = [], [], [], 0
+    for _ in range(n_random):
+        lx, ux = rng.uniform(0, 400), rng.uniform(3600, 4095)
+        c = {"lx": lx, "rx": ux - lx, "weights": list(60.0 ** rng.uniform(0, 1, 4)), "handles": list(np.sort(rng.uniform(-6, 66, 4)))}
+        k = export_bcm3(c, 12, max_error_um=1e9)
+        fine = evaluate(c, np.linspace(0, 4095, 4095 * 16 + 1)) * 1000
+        span = fine.max() - fine.min()
+        errs.append(k.max_error)
+        ratios.append(k.max_error / (0.5 * span / 4096))
+        peaks.append(k.max_intermediate)
+        refused += k.max_error > 0.5 * span / 4096
+    print(
+        "  %d random monotone bcm3 curves (weight ratios <= 60, handles in -6..66 mm): error median %.2f um, "
+        "max %.2f um; error/bound median %.2f, max %.2f; %d over the bound (refused); worst intermediate 2**%.3f"
+        % (n_random, np.median(errs), np.max(errs), np.median(ratios), np.max(ratios), refused, np.log2(max(peaks)))
+    )
+    for name, (coeffs, rng_mm) in POLYS.items():
+        row("poly " + name, export_poly(coeffs, *rng_mm, 1000, 1000), "units")
+
+
+def speed():
+    x, y = sweep_fits()
+    k3 = export_bcm3(fit_bcm(x, y, 3).coefficients, 12)
+    kd = export_curve_table(lambda v: evaluate(KNEE, v), 12, n_points=4096, x_range=(0, 4095))
+    kp = export_pwl([100, 500, 3000, 3900], [0, 5, 55, 60], 12)
+    kdf = export_poly(*POLYS["Df_hat(D1) um->um"][0:1], 0.0, 60.0, 1000, 1000)
+    native_src = (REPO / "firmware" / "bcm_fixed.py").read_text().replace("def bcm3(", "@micropython.native\ndef bcm3(")
+    source = """
+import time, micropython
+from array import array
+from firmware.bcm_fixed import bcm3
+from firmware.pwl_fixed import pwl
+from firmware.poly_fixed import poly
+ns = {}
+exec(%r, ns)
+bcm3_native = ns['bcm3']
+def bench(f, k, step):
+    n = 20000
+    best = 1e9
+    for rep in range(3):
+        i = 0
+        t = time.ticks_us()
+        while i < n:
+            f((i * step) & 4095, k)
+            i += 1
+        best = min(best, time.ticks_diff(time.ticks_us(), t) / n)
+    return best
+def empty(x, k):
+    return x
+K3 = array('i', %r); KD = array('i', %r); KP = array('i', %r); KDF = array('i', %r)
+same = all(bcm3(c, K3) == bcm3_native(c, K3) for c in range(4096))
+print('call overhead (empty function) %%.2f us' %% bench(empty, K3, 7))
+print('bcm3 %%.2f us, @native %%.2f us (bit-identical: %%s)' %% (bench(bcm3, K3, 7), bench(bcm3_native, K3, 7), same))
+print('pwl 4-knot table %%.2f us, 4096-knot table %%.2f us' %% (bench(pwl, KP, 7), bench(pwl, KD, 7)))
+print('poly degree 4 (Df) %%.2f us' %% bench(lambda x, k: poly(x * 14, k), KDF, 7))
+""" % (native_src, list(k3), list(kd), list(kp), list(kdf))
+    print("speed under MicroPython (unix port, x64), best of 3 x 20,000 calls:")
+    for line in run_micropython(source).stdout.splitlines():
+        print("  " + line)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--random", type=int, default=100, help="random bcm3 curves to measure (default 100)")
+    args = parser.parse_args()
+    accuracy(args.random)
+    speed()
+
+
+if __name__ == "__main__":
+    main()
