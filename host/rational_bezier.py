@@ -139,12 +139,19 @@ class _Projection:
 
 
 def _starts(n_free, lo, hi, count, seed, interior):
-    """Start points: all weights equal, heavy interior weights (x4, x20), then seeded random."""
+    """Start points: all weights equal, heavy interior weights (x4, x20), one seeded random; past
+    four: light interior weights (/4), a heavy first end, a heavy last end, then more random."""
     out = [np.clip(np.zeros(n_free), lo, hi)]
     if interior.any():
         for factor in (4.0, 20.0):
             out.append(np.clip(np.where(interior, math.log(factor), 0.0), lo, hi))
     rng = np.random.default_rng(seed)
+    out.append(rng.uniform(lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo), n_free))
+    if interior.any():
+        out.append(np.clip(np.where(interior, -math.log(4.0), 0.0), lo, hi))
+    last = ~interior  # the w_n entry (w_0 is fixed at 1 in the data box)
+    out.append(np.clip(np.full(n_free, -math.log(20.0)), lo, hi))  # a heavy first end
+    out.append(np.clip(np.where(last, math.log(20.0), 0.0), lo, hi))  # a heavy last end
     while len(out) < count:
         out.append(rng.uniform(lo + 0.25 * (hi - lo), hi - 0.25 * (hi - lo), n_free))
     return out[: max(1, count)]
@@ -281,13 +288,15 @@ def _search(make, starts, lo, hi):
     return best[0]
 
 
-def fit_bcm(x, y, order, bounds="data", starts=4, seed=0, monotone="check", max_search_points=4000):
+def fit_bcm(x, y, order, bounds="data", starts=None, seed=0, monotone="check", max_search_points=4000):
     """Fit a degree-`order` BCM to sorted (x, y); monotone = "check" | "force" | "off".
 
+    `starts` local searches (default 4 up to degree 3, 7 above, where more basins appear).
     Above `max_search_points` samples the weights are searched on that many bin means (the
     handles are always solved on every sample), which keeps 30,000-sample sweeps fast.
     """
     lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior = _setup(x, y, order, bounds)
+    starts = (4 if order <= 3 else 7) if starts is None else int(starts)
     t = (np.asarray(x, dtype=float) - lx) / rx
     tb, yb, wt = _binned(t, yn, int(max_search_points))
     basis_b = basis if wt is None else bernstein(tb, order)
