@@ -14,6 +14,7 @@ calls them can run under micropython.heap_lock(); the float physics runs between
 
 import time
 
+from boards.sim import bench_rig
 from boards.sim.actuator import CHANNELS, Actuator
 
 _world = None
@@ -234,6 +235,7 @@ def run_ticks(n):
 def idle():
     """Run every tick that is due by the wall clock; return how many ran."""
     global _next_due, skipped_ticks
+    bench_rig.poll(_world)  # what a person mounted on the rig (rig.json), outside the step
     t = _timer
     if t is None:
         return 0
