@@ -31,7 +31,12 @@ intermediate exceeds 2**29 + 2**28. See docs/fixed-point.md for the bound analys
 measured figures.
 """
 
-from firmware.portable import const, native
+from firmware.portable import const
+
+try:
+    import micropython  # @micropython.native is resolved by MicroPython's compiler, not at run time
+except ImportError:  # CPython: the same decorator must still be valid, as an identity
+    from firmware import portable as micropython
 
 _ONE = const(131072)  # 1.0 in Q17
 _HALF = const(65536)
@@ -39,7 +44,10 @@ _HALF = const(65536)
 LENGTH = const(12)
 
 
-@native  # 2-3x faster under MicroPython, bit-identical (same int object semantics)
+# native code: 2-3x faster under MicroPython and bit-identical (the same int objects and
+# operators); only the literal @micropython.native selects the emitter (firmware.portable's
+# `native` is an identity on MicroPython too, as the micropython module has no such attribute)
+@micropython.native
 def bcm3(code, k):
     """Position in um of ADC `code` for the exported BCM-3 constants `k` (layout above)."""
     d = (code << k[0]) - k[1]

@@ -25,10 +25,16 @@ k layout (a flat int sequence, array('i') on the board):
 Rounding is floor(v + 1/2) via >> (floor on both interpreters, also for negative v).
 """
 
-from firmware.portable import native
+try:
+    import micropython  # @micropython.native is resolved by MicroPython's compiler, not at run time
+except ImportError:  # CPython: the same decorator must still be valid, as an identity
+    from firmware import portable as micropython
 
 
-@native  # 2-3x faster under MicroPython, bit-identical (same int object semantics)
+# native code: 2-3x faster under MicroPython and bit-identical (the same int objects and
+# operators); only the literal @micropython.native selects the emitter (firmware.portable's
+# `native` is an identity on MicroPython too, as the micropython module has no such attribute)
+@micropython.native
 def poly(x, k):
     """The exported polynomial `k` (layout above) at integer input `x`, as an integer."""
     if x < k[2]:

@@ -18,10 +18,16 @@ Rounding is floor(v + 1/2) via // (floor on both interpreters, also for negative
 at a knot is exactly the stored knot value, so a monotone table stays monotone.
 """
 
-from firmware.portable import native
+try:
+    import micropython  # @micropython.native is resolved by MicroPython's compiler, not at run time
+except ImportError:  # CPython: the same decorator must still be valid, as an identity
+    from firmware import portable as micropython
 
 
-@native  # 2-3x faster under MicroPython, bit-identical (same int object semantics)
+# native code: 2-3x faster under MicroPython and bit-identical (the same int objects and
+# operators); only the literal @micropython.native selects the emitter (firmware.portable's
+# `native` is an identity on MicroPython too, as the micropython module has no such attribute)
+@micropython.native
 def pwl(code, k):
     """Position in um of ADC `code` for the exported table `k` (layout above)."""
     n = k[0]

@@ -49,7 +49,7 @@ def test_clamps_outside_the_calibrated_range():
 
 def curves():
     """Curves a fit could return: lx/ux near the rails, weight ratios within [1/60, 60],
-    handles in the widened reference range [-3, 63] mm (sorted or not)."""
+    handles in the fitter's widened reference range [-6, 66] mm (sorted or not)."""
     return st.builds(
         lambda lx, ux, logw, p, sort: {
             "lx": lx,
@@ -60,37 +60,38 @@ def curves():
         st.floats(0, 400),
         st.floats(3600, 4095),
         st.lists(st.floats(0, 1), min_size=4, max_size=4),
-        st.lists(st.floats(-3, 63), min_size=4, max_size=4),
+        st.lists(st.floats(-6, 66), min_size=4, max_size=4),
         st.booleans(),
     )
 
 
-@settings(max_examples=12, deadline=None)
+@settings(max_examples=10, deadline=None)
 @given(curves())
 def test_random_curves_error_model_and_31_bits(c):
     """Error <= 3 um + 0.02 code x the steepest local slope (what Q17 t can resolve), every
     intermediate within 2**30, and the exporter refuses exactly the curves over 0.5 LSB."""
-    k = export_bcm3(c, 12, max_error_um=1e9)
+    try:
+        k = export_bcm3(c, 12)
+        refused = False
+    except ValueError as e:
+        assert "bound" in str(e)
+        k = export_bcm3(c, 12, max_error_um=1e9)
+        refused = True
     reference = rational_bernstein_um(c, CODES)
     err = np.max(np.abs(integer_curve(k) - reference))
     fine = rational_bernstein_um(c, np.linspace(0, 4095, 4095 * 16 + 1))
     steepest = np.max(np.abs(np.diff(fine))) * 16
     assert err <= 3.0 + 0.02 * steepest
     assert k.max_intermediate <= 2**30
-    bound = 0.5 * (reference.max() - reference.min()) / 4096
-    if err <= bound:
-        assert export_bcm3(c, 12) == k
-    else:
-        with pytest.raises(ValueError, match="bound"):
-            export_bcm3(c, 12)
+    assert refused == (err > 0.5 * (reference.max() - reference.min()) / 4096)
 
 
 def test_cpython_and_micropython_agree_on_many_curves():
     rng = np.random.default_rng(7)
     cases = [export_bcm3(KNEE, 12)]
-    while len(cases) < 12:
+    while len(cases) < 8:
         lx, ux = rng.uniform(0, 400), rng.uniform(3600, 4095)
-        c = {"lx": lx, "rx": ux - lx, "weights": list(60.0 ** rng.uniform(0, 1, 4)), "handles": list(rng.uniform(-3, 63, 4))}
+        c = {"lx": lx, "rx": ux - lx, "weights": list(60.0 ** rng.uniform(0, 1, 4)), "handles": list(rng.uniform(-6, 66, 4))}
         cases.append(export_bcm3(c, 12, max_error_um=1e9))
     inputs = list(range(-20, 4116))
     expected = [[bcm3(x, list(k)) for x in inputs] for k in cases]

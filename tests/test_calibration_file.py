@@ -170,9 +170,8 @@ def test_killed_writer_leaves_the_old_file(tmp_path):
         "sys.path.insert(0, %r)\n"
         "sys.path.insert(0, %r)\n"
         "import host.calibration_file as cf\n"
-        "from test_calibration_file import full_document\n"
         "os.replace = lambda a, b: os.kill(os.getpid(), signal.SIGKILL)\n"
-        "cf.write_calibration(%r, full_document(board='new'))\n" % (str(REPO), str(REPO / "tests"), str(path))
+        "cf.write_calibration(%r, cf.new_document(board='new'))\n" % (str(REPO), str(REPO / "tests"), str(path))
     )
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True)
     assert proc.returncode == -9, proc.stderr
