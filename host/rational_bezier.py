@@ -102,16 +102,23 @@ class _Projection:
         # under a threaded BLAS on a busy machine, small solves and matmuls are not
         gram = design.T @ design
         rhs = design.T @ self.y
-        z = np.linalg.solve(gram, rhs)
+        try:
+            z = np.linalg.solve(gram, rhs)
+        except np.linalg.LinAlgError:  # too few distinct inputs for this degree: least norm
+            z = np.linalg.lstsq(gram, rhs, rcond=None)[0]
         if np.any(z < self.lb) or np.any(z > self.ub):
-            # same minimiser as the tall problem: |A z - y|^2 = |L' z - L^-1 A'y|^2 + const
-            chol = np.linalg.cholesky(gram)
-            z = lsq_linear(chol.T, solve_triangular(chol, rhs, lower=True), bounds=(self.lb, self.ub), method="bvls").x
+            try:
+                # same minimiser as the tall problem: |A z - y|^2 = |L' z - L^-1 A'y|^2 + const
+                chol = np.linalg.cholesky(gram)
+                z = lsq_linear(chol.T, solve_triangular(chol, rhs, lower=True), bounds=(self.lb, self.ub),
+                               method="bvls").x
+            except np.linalg.LinAlgError:
+                z = lsq_linear(design, self.y, bounds=(self.lb, self.ub), method="bvls").x
         tiny = 1e-10
         inactive = (z > self.lb + tiny) & (z < self.ub - tiny)
-        q = (design[:, inactive], gram[np.ix_(inactive, inactive)]) if inactive.any() else None
+        free_cols = (design[:, inactive], gram[np.ix_(inactive, inactive)]) if inactive.any() else None
         p = z if self.shape == 0 else self.steps @ z
-        self._key, self.phi, self.p, self.q = key, phi, p, q
+        self._key, self.phi, self.p, self.free_cols = key, phi, p, free_cols
         self.f = phi @ p
 
     def residual(self, theta):
@@ -123,10 +130,10 @@ class _Projection:
         # d f / d log w_k at fixed handles is phi_k (p_k - f); with the handles at their
         # optimum, project out what the handles still free to move would absorb (Kaufman).
         g = self.phi[:, self.free] * ((self.p[self.free][None, :] - self.f[:, None]) * self.wt[:, None])
-        if self.q is None:
+        if self.free_cols is None:
             return g
-        a, gram = self.q
-        g = g - a @ np.linalg.solve(gram, a.T @ g)
+        a, gram = self.free_cols
+        g = g - a @ np.linalg.lstsq(gram, a.T @ g, rcond=None)[0]
         if self.shape == 0 and a.shape[1] == self.phi.shape[1]:
             # Golub-Pereyra's second term, -(A+)' (dA_k)' r: it matters here because a low-degree
             # curve leaves a large systematic residual, and without it steps zigzag near the optimum
@@ -134,7 +141,7 @@ class _Projection:
             u = self.phi[:, self.free] * (self.wt * r)[:, None]
             v = -(self.phi.T @ u)
             v[self.free, np.arange(self.free.size)] += u.sum(axis=0)
-            g = g - a @ np.linalg.solve(gram, v)
+            g = g - a @ np.linalg.lstsq(gram, v, rcond=None)[0]
         return g
 
 
