@@ -21,6 +21,9 @@ import numpy as np
 from host.models import MODELS, fit_model
 
 DEFAULT_MODELS = ("bcm", "pcm", "cheb", "spline", "lut", "pwl")
+# Models whose fitter can start from the previous order's fit: their objective then never rises
+# with the order (a free-knot search otherwise lands in a worse local optimum now and then).
+WARM_START = {"pwl": lambda fit: {"start_knots": fit.coefficients["knots_x"]}}
 COLUMNS = ("model", "order", "n_params", "norm2", "rms", "rms_over_noise", "max_abs", "monotone", "fit_seconds", "error")
 
 
@@ -78,11 +81,13 @@ def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=Non
     for i, name in enumerate(models):
         opts = (options or {}).get(name, {})
         seconds = 0.0
+        previous = None
         for order in orders:
             row = dict.fromkeys(COLUMNS, float("nan"))
             row.update(model=name, order=int(order), error="", monotone=False)
             try:
-                fit = fit_model(name, x, y, order, **opts)
+                warm = WARM_START[name](previous) if previous is not None and name in WARM_START else {}
+                fit = fit_model(name, x, y, order, **opts, **warm)
             except (ValueError, np.linalg.LinAlgError) as exc:
                 row["error"] = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
                 row["n_params"] = float("nan")
@@ -98,6 +103,7 @@ def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=Non
                 if noise:
                     row["rms_over_noise"] = fit.rms / noise
                 seconds += fit.fit_seconds
+                previous = fit
             rows.append(row)
         if progress:
             progress(name, i + 1, len(models), seconds)

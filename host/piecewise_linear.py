@@ -236,8 +236,25 @@ def _sse(x, y, kx):
     return float(np.sum((pwl_curve(kx, lsq_knot_values(x, y, kx))(x) - y) ** 2))
 
 
-def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, **options):
-    """Free-knot piecewise-linear curve with `order` knots (interior positions optimised)."""
+def grow_knots(x, y, knots_x, k):
+    """Knot positions for k knots from fewer: split the span with the largest residual SSE."""
+    kx = np.asarray(knots_x, dtype=float)
+    while len(kx) < k:
+        r = pwl_curve(kx, lsq_knot_values(x, y, kx))(x) - y
+        j, _ = hat_weights(x, kx)
+        sse = np.bincount(j, r * r, len(kx) - 1)
+        worst = int(np.argmax(sse))
+        kx = np.insert(kx, worst + 1, 0.5 * (kx[worst] + kx[worst + 1]))
+    return kx
+
+
+def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, start_knots=None, **options):
+    """Free-knot piecewise-linear curve with `order` knots (interior positions optimised).
+
+    `start_knots` (optional): all knot positions of a fit with fewer knots (e.g. the previous
+    order in a sweep over orders); they are grown to `order` knots and used as one more start,
+    so the fit is never worse than that one.
+    """
     x, y, k = _check(x, y, order)
     lo, hi = float(x[0]), float(x[-1])
     span = hi - lo
@@ -250,8 +267,11 @@ def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, **options):
     dp = segmentation_start(xs, ys, k - 1)
     if dp is not None:
         candidates.append((dp - lo) / span)
+    if start_knots is not None and 2 <= len(start_knots) <= k:
+        grown = grow_knots(x, y, np.clip(np.sort(start_knots), lo, hi), k)
+        candidates.append((grown[1:-1] - lo) / span)
     rng = np.random.default_rng(seed)
-    while len(candidates) < max(int(starts), 1):
+    while len(candidates) < max(int(starts), 1) + (start_knots is not None):
         candidates.append(np.sort(rng.uniform(0, 1, n_inner)))
     best = None
     for u0 in candidates:
@@ -259,9 +279,12 @@ def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, **options):
         if best is None or sse < best[0]:
             best = (sse, kx)
     kx = best[1]
-    notes = ["knot positions optimised from %d starts (even, DP segmentation, random)" % len(candidates)]
+    notes = ["knot positions optimised from %d starts (even, DP segmentation, %srandom)"
+             % (len(candidates), "grown from the given knots, " if start_knots is not None else "")]
     if len(xs) < len(x):
         notes.append("knot search on %d bin means of the %d samples; values fitted on all" % (len(xs), len(x)))
-    if _sse(x, y, even) < _sse(x, y, kx):
-        kx = even  # the search only ever improves on even knots; binning must not undo that
+    # the search only ever improves on its starts; binning must not undo that
+    for start in [even] + ([grown] if start_knots is not None and 2 <= len(start_knots) <= k else []):
+        if _sse(x, y, start) < _sse(x, y, kx):
+            kx = start
     return _result("pwl", k, 2 * k - 2, kx, lsq_knot_values(x, y, kx), notes)
