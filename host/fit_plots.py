@@ -37,7 +37,12 @@ def plot_fit(path, x, y, result, unit="mm", noise=None, title=None, direction=No
     top.grid(alpha=0.3)
     top.set_title(title or "%s: rms %.4g %s, max %.4g %s" % (label, result.rms, unit, result.max_abs, unit))
     r = (y - result(x)) * scale
-    bottom.plot(x, r, ".", ms=2, color="tab:blue")
+    if direction is None:
+        bottom.plot(x, r, ".", ms=2, color="tab:blue")
+    else:  # hysteresis shows as two bands, one per direction
+        for d, colour in ((1, "tab:blue"), (-1, "tab:orange")):
+            m = direction == d
+            bottom.plot(x[m], r[m], ".", ms=2, color=colour, alpha=0.6)
     bottom.axhline(0, color="black", lw=0.8)
     if noise:
         bottom.axhspan(-noise * scale, noise * scale, color="tab:green", alpha=0.15, label="noise floor +-1 sigma")
