@@ -9,6 +9,7 @@ rewrites the block between the GENERATED markers in docs/calibration-models.md w
 - a summary per curve: BCM-3 against the noise floor, the lowest PCM order that matches it, and
   the best of each model with no more stored parameters than BCM-3 (7), BCM-5 (11), BCM-9 (19);
 - for curves under 500 samples, 5-fold cross-validated RMS of the in-budget winners;
+- float32 evaluation error of the polynomial forms on the example sweep;
 - the objective (residual 2-norm) and RMS/noise tables per curve.
 --check only prints the block (does not touch the doc). Curves longer than --max-samples are
 thinned to every k-th sample (the RP2040 file has 32,768), which the tables say.
@@ -89,6 +90,39 @@ def cv_table(results, budgets=(7, 11, 19)):
     return "\n".join(lines)
 
 
+def _horner32(coef_high_first, t):
+    acc = np.zeros_like(t, dtype=np.float32)
+    for c in coef_high_first:
+        acc = (acc * t + np.float32(c)).astype(np.float32)
+    return acc
+
+
+def _clenshaw32(coef, t):
+    b1 = np.zeros_like(t, dtype=np.float32)
+    b2 = np.zeros_like(t, dtype=np.float32)
+    for c in coef[:0:-1]:
+        b1, b2 = (np.float32(2) * t * b1 - b2 + np.float32(c)).astype(np.float32), b1
+    return (t * b1 - b2 + np.float32(coef[0])).astype(np.float32)
+
+
+def float32_table(x, y, orders=(3, 6, 10, 15)):
+    """Max error over every 12-bit code of evaluating each polynomial form in float32 (a board's
+    single-precision FPU) against float64: why a PCM must not ship raw polyfit coefficients."""
+    codes = np.arange(0, 4096, dtype=float)
+    lines = ["| degree | pcm-raw (Horner on x) | pcm (Horner on u in [0, 1]) | cheb (Clenshaw on [-1, 1]) |",
+             "| ---: | ---: | ---: | ---: |"]
+    for n in orders:
+        raw, pcm, cheb = (fit_model(m, x, y, n) for m in ("pcm-raw", "pcm", "cheb"))
+        e_raw = np.max(np.abs(_horner32(raw.coefficients["coef"], codes.astype(np.float32)) - raw(codes)))
+        u = ((codes - pcm.coefficients["lx"]) / pcm.coefficients["rx"]).astype(np.float32)
+        e_pcm = np.max(np.abs(_horner32(pcm.coefficients["coef"][::-1], u) - pcm(codes)))
+        lo, hi = cheb.coefficients["domain"]
+        t = ((2 * codes - lo - hi) / (hi - lo)).astype(np.float32)
+        e_cheb = np.max(np.abs(_clenshaw32(cheb.coefficients["coef"], t) - cheb(codes)))
+        lines.append("| %d | %.3g | %.3g | %.3g |" % (n, e_raw, e_pcm, e_cheb))
+    return "\n".join(lines)
+
+
 def summary_table(results):
     lines = [
         "| curve | samples | noise floor | BCM-3 rms (x floor) | PCM order matching BCM-3 |"
@@ -155,6 +189,11 @@ def main(argv=None):
         "refitted on 4/5 of the points and scored on the rest, ranked best first):",
         "",
         cv_table(results),
+        "",
+        "Evaluating the polynomial baselines in float32, on %s (error in reference units, max over "
+        "all 4096 codes):" % results[0][0],
+        "",
+        float32_table(results[0][4], results[0][5]),
         "",
         *sections,
         END,
