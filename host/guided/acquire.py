@@ -1,0 +1,126 @@
+"""Moving the actuator and logging telemetry for the guided steps and the experiments.
+
+Sweeps run in open loop at a low duty from one end stop to the other: they need no calibration,
+and the stop is found from the data (the pots stop changing), not from a guessed time. While a
+sweep runs the firmware's soft stroke limits are opened (they would stop a calibrated board 1 mm
+short of the ends) and restored afterwards. Heartbeats keep the firmware's host timeout away.
+"""
+
+import contextlib
+import time
+
+import numpy as np
+
+from firmware import protocol as P
+from host.board_client import settle
+
+COL = {name: i for i, name in enumerate(P.FIELDS)}
+STREAM_HZ = 200
+STALL_S = 0.4  # no pot moved more than STALL_CODES for this long: at the end stop
+STALL_CODES = 10
+
+
+def collect(client, seconds, until=None, hz=STREAM_HZ):
+    """Telemetry records (int array, columns P.FIELDS) for `seconds` or until `until(records)`."""
+    client.start_stream(hz)
+    chunks = []
+    start = time.monotonic()
+    try:
+        while time.monotonic() - start < seconds:
+            client.heartbeat_if_due()
+            got = [f.records().copy() for f in client.frames(timeout=0.05)]
+            if got:
+                chunks.extend(got)
+                if until is not None and until(np.concatenate(chunks), time.monotonic() - start):
+                    break
+    finally:
+        client.stop_stream()
+    return np.concatenate(chunks) if chunks else np.zeros((0, P.RECORD_WORDS), dtype=np.int32)
+
+
+def _stalled(records, seconds, hz=STREAM_HZ):
+    n = int(STALL_S * hz)
+    if seconds < STALL_S + 0.3 or len(records) < n:
+        return False
+    tail = records[-n:]
+    return all(np.ptp(tail[:, COL[c]]) <= STALL_CODES for c in ("raw1", "raw2"))
+
+
+@contextlib.contextmanager
+def open_stroke(client):
+    """Let open-loop sweeps reach the end stops on a calibrated board; restore the limits after."""
+    saved = {name: client.call("get", name) for name in ("stroke_min_um", "stroke_max_um")}
+    try:
+        client.call("set", "stroke_min_um", -65535)
+        client.call("set", "stroke_max_um", 65535)
+        yield
+    finally:
+        client.call("stop")
+        for name, value in saved.items():
+            client.call("set", name, value)
+
+
+def drive_to_stop(client, duty, max_s=20.0):
+    """Open loop at `duty` until the pots stop moving (an end stop); motor off; the records."""
+    client.call("reset")
+    time.sleep(0.05)
+    client.call("mode", "open_loop")
+    client.call("target", int(duty))
+    try:
+        return collect(client, max_s, until=_stalled)
+    finally:
+        client.call("stop")
+
+
+def moving_part(records, column):
+    """Drop the still samples at both ends of a sweep (start at one stop, stall at the other)."""
+    if len(records) == 0:
+        return records
+    raw = records[:, COL[column]].astype(float)
+    start, end = np.median(raw[:10]), np.median(raw[-20:])
+    moving = (np.abs(raw - start) > 3) & (np.abs(raw - end) > 3)
+    idx = np.flatnonzero(moving)
+    return records[idx[0] : idx[-1] + 1] if idx.size else records[:0]
+
+
+def sweep(client, duty, say=None):
+    """To the low stop fast, then a slow forward and a slow backward run: (records, direction)."""
+    with open_stroke(client):
+        drive_to_stop(client, -max(3 * abs(duty), 2500))
+        if say:
+            say("  sweeping forward (duty %+d)" % abs(duty))
+        fwd = moving_part(drive_to_stop(client, abs(duty)), "raw2")
+        if say:
+            say("  sweeping backward (duty %+d)" % -abs(duty))
+        back = moving_part(drive_to_stop(client, -abs(duty)), "raw2")
+    records = np.concatenate([fwd, back])
+    direction = np.concatenate([np.ones(len(fwd)), -np.ones(len(back))])
+    return records, direction
+
+
+def hold(client, mode, target, field, tolerance, timeout_s=8.0, measure_s=0.3):
+    """Settle `mode` at `target` (through host.board_client.settle), then log `measure_s` more
+    seconds still in that mode: (settled, records of the measurement)."""
+    client.call("reset")
+    ok, _, _ = settle(client, mode, target, field, tolerance, timeout_s=timeout_s, hold_s=0.2)
+    return ok, collect(client, measure_s)
+
+
+def mean(records, column):
+    return float(np.mean(records[:, COL[column]])) if len(records) else float("nan")
+
+
+def collect_pulse(client, duty, seconds):
+    """A short open-loop push (manual stops); motor off after; the records."""
+    client.call("mode", "open_loop")
+    client.call("target", int(duty))
+    try:
+        return collect(client, seconds)
+    finally:
+        client.call("stop")
+        time.sleep(0.1)
+
+
+def stalled_at_end(records):
+    """True when a push moved neither pot (the block sits at an end stop)."""
+    return len(records) == 0 or all(np.ptp(records[:, COL[c]]) <= STALL_CODES for c in ("raw1", "raw2"))

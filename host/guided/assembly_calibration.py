@@ -1,0 +1,109 @@
+"""Calibration 2 (SPEC section 3): the assembly error Df = D1 - D2 between the calibrated pots.
+
+With both pots calibrated and no load, the block sweeps end to end (forward and backward at a
+low duty, so the small friction deformation has both signs and averages out). D1 and D2 are
+computed on the host by the firmware's own integer converters from the calibration file (no
+second copy of the arithmetic), Df = D1 - D2 is fitted by a polynomial in D1 (order 4 by
+default; `auto` picks it by 5-fold cross-validation) and exported as the `df` section.
+"""
+
+import numpy as np
+
+from firmware.calibration import CalibrationError, convert, load_calibration
+from host.errors import UserError
+from host.calibration_file import poly_section
+from host.guided import acquire
+from host.guided.outcome import StepOutcome
+
+MAX_ORDER = 8
+
+
+def positions_um(calibration_path, raw1, raw2):
+    """(D1, D2) in um from raw codes through the firmware's converters and the file's constants."""
+    try:
+        cal = load_calibration(str(calibration_path))
+    except CalibrationError as exc:
+        raise UserError("the assembly step needs both pots calibrated first (%s): %s" % (calibration_path, exc)) from None
+    d1 = np.array([convert(cal.pot1[0], int(c), cal.pot1[1]) for c in raw1], dtype=float)
+    d2 = np.array([convert(cal.pot2[0], int(c), cal.pot2[1]) for c in raw2], dtype=float)
+    return d1, d2
+
+
+def cv_rms(x, y, order, folds=5):
+    """Root mean square hold-out error of a degree-`order` polynomial (interleaved folds)."""
+    idx = np.arange(len(x))
+    err = []
+    for k in range(folds):
+        test = idx % folds == k
+        c = np.polyfit(x[~test], y[~test], order)
+        err.append(y[test] - np.polyval(c, x[test]))
+    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+
+def choose_order(x, y, order):
+    """(order, {order: cv rms}): the given order, or for 'auto' the lowest within 5 % of the best."""
+    scores = {n: cv_rms(x, y, n) for n in range(1, MAX_ORDER + 1)}
+    if order == "auto":
+        best = min(scores.values())
+        order = min(n for n, s in scores.items() if s <= 1.05 * best)
+    return int(order), scores
+
+
+def fit_df(d1_mm, df_mm, order):
+    order, scores = choose_order(d1_mm, df_mm, order)
+    coeffs = np.polyfit(d1_mm, df_mm, order)
+    resid = df_mm - np.polyval(coeffs, d1_mm)
+    return coeffs, resid, order, scores
+
+
+def calibrate_assembly(session, rig, prompter, opts, calibration_path):
+    rig.no_load()
+    prompter.say("[assembly] no-load sweep end to end with the calibrated pots")
+    records, direction = acquire.sweep(session.client, opts.duty, prompter.say)
+    if len(records) < 50:
+        return StepOutcome("assembly", {}, ["assembly: almost no data (did the block move?)"], [], ok=False)
+    d1, d2 = positions_um(calibration_path, records[:, acquire.COL["raw1"]], records[:, acquire.COL["raw2"]])
+    x = d1 / 1000.0
+    df = (d1 - d2) / 1000.0
+    coeffs, resid, order, scores = fit_df(x, df, opts.df_order)
+    lo, hi = float(np.min(x)), float(np.max(x))
+    span = hi - lo
+    lines = [
+        "Df: %d samples over D1 %.1f..%.1f mm" % (len(x), lo, hi),
+        "Df: cross-validated rms by order: " + ", ".join("%d: %.1f um" % (n, 1000 * s) for n, s in scores.items()),
+        "Df: order %d, peak |Df| before %.3f mm, peak residual after %.3f mm (rms %.1f um)" % (
+            order, np.max(np.abs(df)), np.max(np.abs(resid)), 1000 * np.sqrt(np.mean(resid**2))),
+    ]
+    ok = span >= opts.limits.min_range_mm
+    if not ok:
+        lines.append("Df: FAIL the sweep covered only %.1f mm: let the block run end to end" % span)
+    stats = {"order": order, "peak_before_mm": float(np.max(np.abs(df))), "peak_after_mm": float(np.max(np.abs(resid))),
+             "rms_after_mm": float(np.sqrt(np.mean(resid**2))), "n_samples": int(len(x))}
+    section = poly_section(coeffs, (lo - 0.05 * span, hi + 0.05 * span), 1000.0, 1000.0, ("um", "um"), stats)
+    png = opts.out_dir / "calibration-df.png"
+    plot_df(png, x, df, coeffs, resid, direction)
+    data = {"d1_mm": x, "df_mm": df, "resid_mm": resid, "coeffs": coeffs, "direction": direction, "stats": stats}
+    return StepOutcome("assembly", {"df": section}, lines, [png], ok=ok, data=data)
+
+
+def plot_df(path, x, df, coeffs, resid, direction=None):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    ax.plot(x, df, ".", ms=2, color="tab:orange", label="Df = D1 - D2 before (peak %.2f mm)" % np.max(np.abs(df)))
+    ax.plot(x, resid, ".", ms=2, color="tab:blue", label="after: Df - Df_hat (peak %.3f mm)" % np.max(np.abs(resid)))
+    grid = np.linspace(np.min(x), np.max(x), 400)
+    ax.plot(grid, np.polyval(coeffs, grid), "k-", lw=1, label="Df_hat, order %d" % (len(coeffs) - 1))
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set_xlabel("D1 (mm)")
+    ax.set_ylabel("mm")
+    ax.set_title("Assembly error between the pots (paper Fig. 5)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
