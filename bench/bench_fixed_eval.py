@@ -20,6 +20,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 from host.example_sweep import simulate_sweep  # noqa: E402
 from host.fixed_export import export_bcm3, export_curve_table, export_poly, export_pwl  # noqa: E402
 from host.rational_bezier import evaluate, fit_bcm  # noqa: E402
+from host.sweep import load_sweep  # noqa: E402
 from micropython_runner import REPO, run_micropython  # noqa: E402
 
 KNEE = {"lx": 60.0, "rx": 3950.0, "weights": [1.0, 12.0, 12.0, 1.0], "handles": [0.0, 1.5, 58.5, 60.0]}
@@ -56,6 +57,11 @@ def accuracy(n_random):
     k5 = export_curve_table(fit5, 12)
     row("table of the degree-5 fit (%d knots)" % k5[0], k5)
     row("pwl, 4 knots", export_pwl([100, 500, 3000, 3900], [0, 5, 55, 60], 12))
+    for path in sorted((REPO.parent / "shared" / "realdata").glob("*.csv")):
+        sweep = load_sweep(path)
+        fit = fit_bcm(sweep.x, sweep.y, 3)
+        unit_um = 60000 / np.ptp(fit(np.arange(4096)))  # read the divider as a 60 mm pot
+        row("bcm3, " + path.stem[:28], export_bcm3(fit.coefficients, 12, unit_um=unit_um))
     print("  (fits took %.1f s)" % (time.perf_counter() - t0))
     rng = np.random.default_rng(1)
     errs, ratios, peaks, refused = [], [], [], 0

@@ -253,20 +253,20 @@ def export_curve_table(f, adc_bits, n_points=None, max_error_um=None, unit_um=UM
     raise ValueError("no table of up to %d points meets the bound: %s" % (tries[-1], err))
 
 
-def export_pot(fit, adc_bits, max_error_um=None):
+def export_pot(fit, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
     """(kind, FixedExport) for a pot FitResult: bcm3 when possible, else the best table."""
     c = fit.coefficients
     if fit.model == "bcm" and len(c.get("weights", ())) == 4:
         try:
-            return "bcm3", export_bcm3(c, adc_bits, max_error_um)
+            return "bcm3", export_bcm3(c, adc_bits, max_error_um, unit_um)
         except ValueError:
             pass
     if fit.model in ("lut", "pwl"):
         try:
-            return "pwl", export_pwl(c["knots_x"], c["knots_y"], adc_bits, max_error_um)
+            return "pwl", export_pwl(c["knots_x"], c["knots_y"], adc_bits, max_error_um, unit_um)
         except ValueError:
             pass
-    return "pwl", export_curve_table(fit, adc_bits, max_error_um=max_error_um)
+    return "pwl", export_curve_table(fit, adc_bits, max_error_um=max_error_um, unit_um=unit_um)
 
 
 # ---------------------------------------------------------------- polynomials

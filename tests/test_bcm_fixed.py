@@ -9,7 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware.bcm_fixed import bcm3
-from host.fixed_export import TrackedInt, export_bcm3, track
+from host.fixed_export import TrackedInt, export_bcm3, export_pot, track
+from host.models import fit_model
+from host.sweep import load_sweep
 from test_fixed_on_micropython import evaluate_on_micropython
 
 CODES = np.arange(4096)
@@ -121,3 +123,23 @@ def test_instrumentation_sees_an_overflow():
     k[11] = k[8] + 2**23  # a handle spread 8x the limit
     assert track(bcm3, range(0, 4096, 64), k) > 2**30
     assert TrackedInt(3) * 5 == 15 and isinstance(TrackedInt(3) * 5, TrackedInt)
+
+
+def test_bcm3_fits_of_real_adc_curves(realdata_dir):
+    """The four measured ADC curves (volts or codes against a reference), fitted by the project's
+    BCM-3 fitter and read as a 60 mm pot (a pot is a voltage divider): each exports as bcm3
+    within 0.5 LSB, within 31 bits, and runs bit-identically under MicroPython."""
+    cases = []
+    for path in sorted(realdata_dir.glob("*.csv")):
+        sweep = load_sweep(path)
+        fit = fit_model("bcm", sweep.x, sweep.y, 3)
+        unit_um = 60000 / np.ptp(fit(CODES))
+        kind, k = export_pot(fit, 12, unit_um=unit_um)
+        assert kind == "bcm3", path.name
+        got = integer_curve(k)
+        assert np.max(np.abs(got - fit(CODES) * unit_um)) <= HALF_LSB_60MM + 1e-9, path.name
+        assert k.max_intermediate <= 2**30
+        cases.append(k)
+    assert len(cases) == 4
+    expected = [[bcm3(x, list(k)) for x in range(4096)] for k in cases]
+    assert evaluate_on_micropython("bcm_fixed", "bcm3", cases, range(4096)) == expected
