@@ -46,7 +46,8 @@ def _examples():
 
 
 def test_no_allocation_under_heap_lock():
-    """10,000 calls of each evaluator with the heap locked: no MemoryError, mem_alloc unchanged."""
+    """10,000 calls of each evaluator (and of calibration.convert) with the heap locked: no
+    MemoryError, mem_alloc unchanged."""
     lines = ["import gc, micropython", "from array import array"]
     for module, func, k, _ in _examples():
         lines.append("from firmware.%s import %s" % (module, func))
@@ -70,11 +71,17 @@ def test_no_allocation_under_heap_lock():
         "        ok = 'allocated'",
         "    micropython.heap_unlock()",
         "    return ok, gc.mem_alloc() - before",
-        "for f, k, lo, step in ((bcm3, K_bcm3, -50, 1), (pwl, K_pwl, -50, 1), (poly, K_poly, -1000, 7)):",
+        "from firmware.calibration import convert",
+        "def convert_bcm3(x, k):",
+        "    return convert('bcm3', x, k)",
+        "def convert_pwl(x, k):",
+        "    return convert('pwl', x, k)",
+        "for f, k, lo, step in ((bcm3, K_bcm3, -50, 1), (pwl, K_pwl, -50, 1), (poly, K_poly, -1000, 7),",
+        "                       (convert_bcm3, K_bcm3, -50, 1), (convert_pwl, K_pwl, -50, 1)):",
         "    print(*measure(f, k, lo, step))",
     ]
     out = run_micropython("\n".join(lines)).stdout.split()
-    assert out == ["ok", "0"] * 3
+    assert out == ["ok", "0"] * 5
 
 
 def test_cpython_and_micropython_agree_bit_for_bit():
