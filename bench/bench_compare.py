@@ -28,7 +28,7 @@ def run_once(sweep, env_extra):
         wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(proc.stderr)
-    models = re.findall(r"\] (\S+)\s+fitted orders \S+ in ([0-9.]+) s", proc.stderr)
+    models = re.findall(r"\] (\S+)\s+orders[ 0-9]*: \d+ fits in ([0-9.]+) s", proc.stderr)
     fits = re.search(r"(\d+) fits in ([0-9.]+) s", proc.stdout)
     return wall, float(fits.group(2)), models
 

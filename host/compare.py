@@ -67,12 +67,13 @@ def parse_models(text):
     return names
 
 
-def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=None, options=None):
+def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=None, options=None, on_order=None):
     """Fit every model at every order; returns a list of row dicts (keys: COLUMNS).
 
     A fit that fails (e.g. more parameters than samples) gives a row with NaN scores and the
     reason in `error`, so one bad cell never hides the rest of the table. `progress(model, i,
-    n, seconds)` is called after each model; `options` maps model -> extra fitter options.
+    n, seconds)` is called after each model, `on_order(model, order)` before each fit;
+    `options` maps model -> extra fitter options.
     """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
@@ -85,6 +86,8 @@ def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=Non
         for order in orders:
             row = dict.fromkeys(COLUMNS, float("nan"))
             row.update(model=name, order=int(order), error="", monotone=False)
+            if on_order:
+                on_order(name, order)
             try:
                 warm = WARM_START[name](previous) if previous is not None and name in WARM_START else {}
                 fit = fit_model(name, x, y, order, **opts, **warm)

@@ -47,12 +47,22 @@ def run(args):
               file=sys.stderr)
     t0 = time.perf_counter()
 
+    started = set()
+
+    def on_order(name, order):
+        # a long sweep can keep one model busy for a minute: show each order as it starts
+        if args.quiet:
+            return
+        if name not in started:
+            started.add(name)
+            print("[%d/%d] %-7s orders" % (models.index(name) + 1, len(models), name), end="", file=sys.stderr)
+        print(" %d" % order, end="", file=sys.stderr, flush=True)
+
     def progress(name, i, n, seconds):
         if not args.quiet:
-            print("[%d/%d] %-7s fitted orders %s in %.2f s" % (i, n, name, args.orders, seconds), file=sys.stderr,
-                  flush=True)
+            print(": %d fits in %.2f s" % (len(orders), seconds), file=sys.stderr, flush=True)
 
-    rows = compare_models(sweep.x, sweep.y, orders, models, noise=noise, progress=progress)
+    rows = compare_models(sweep.x, sweep.y, orders, models, noise=noise, progress=progress, on_order=on_order)
     wall = time.perf_counter() - t0
     stem = Path(args.sweep).stem
     try:
