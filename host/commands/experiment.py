@@ -1,0 +1,49 @@
+"""`host experiment paper`: the paper's experiments on a board or `sim`, as a Markdown report."""
+
+from pathlib import Path
+
+from host.errors import UserError
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "experiment",
+        help="run the paper's experiments (calibration, Figs. 3a/5/7/8, dead zone, Table 1) and write a report",
+        description="Calibrate (pots, assembly, force, as `host calibrate`), then run the paper's "
+        "experiments and write DIR/report.md with PNG figures, each number beside the paper's. "
+        "With --port sim everything runs on the virtual board (about 5 minutes).",
+    )
+    p.add_argument("name", choices=("paper",), help="which experiment set (paper)")
+    p.add_argument("--port", required=True, help="serial port of the board (e.g. /dev/ttyACM0) or 'sim'")
+    p.add_argument("--out", required=True, metavar="DIR", help="report directory (report.md, PNGs, calibration files)")
+    p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports)")
+    p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")
+    p.add_argument("--model", default="bcm", help="pot model for the calibration (default bcm, the paper's)")
+    p.add_argument("--order", type=int, default=None, help="pot model order (default 3 for bcm)")
+    p.add_argument("--ref-zero-mm", type=float, default=None, help="reference sensor: position at code 0, mm (real boards)")
+    p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over full scale, mm (real boards)")
+    p.add_argument("--rounds", type=int, default=2, help="force identification rounds (paper: 5; default 2)")
+    p.set_defaults(func=run)
+
+
+def run(args):
+    from host.experiments.paper import run_paper
+    from host.guided.flow import Options
+    from host.guided.prompts import Prompter
+    from host.guided.rig import Rig, reference_scale
+    from host.guided.session import Session
+
+    out_dir = Path(args.out)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError("cannot create %s: %s" % (out_dir, exc.strerror)) from None
+    prompter = Prompter(yes=args.yes or args.port == "sim")
+    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, model=args.model, order=args.order,
+                   rounds=max(1, args.rounds))
+    with Session(args.port, args.board, None, say=prompter.say) as session:
+        opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
+        rig = Rig(prompter, session.root)
+        path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say)
+    print("report: %s (%.0f s)" % (path, results["timings"]["total"]))
+    return 0

@@ -1,0 +1,2 @@
+"""The paper's experiments (SPEC section 5) run against a board or the virtual board, and the
+Markdown report that puts each measured figure beside the paper's. See docs/paper-experiments.md."""

@@ -1,0 +1,102 @@
+"""Paper Fig. 8 (force control at no load: blocking), the force dead zone and Table 1.
+
+- blocking: from D2 = 30 mm, force mode with a target of +F at no load; the block should run on
+  to the end of the stroke. Without the Df correction the firmware's deformation includes Df(D1),
+  reaches the target deformation part-way and the block stops ("blocks").
+- dead zone: with the gauge hooked (fibre just slack at the anchor), force targets 0..-5 N in
+  0.2 N steps; the dead zone is the largest |target| whose measured |force| is below half of it.
+- steps (Table 1): targets -5, -10, -15 N; steady-state error (gauge vs target) and estimation
+  error (firmware's force estimate vs gauge), in % of the target/measured force.
+"""
+
+import numpy as np
+
+from host.guided import acquire
+from host.guided.prompts import end_progress, progress_line
+
+
+def blocking_run(session, rig, target_n, seconds=4.0):
+    """(time s, D2 mm) trajectory and the final D2 of a no-load force run from 30 mm."""
+    rig.no_load()
+    client = session.client
+    acquire.hold(client, "position", 30000, "d2_um", 200, timeout_s=8.0, measure_s=0.1)
+    client.call("mode", "force")
+    client.call("target", int(target_n * 1000))
+    rec = acquire.collect(client, seconds)
+    client.call("stop")
+    t = (rec[:, acquire.COL["t_us"]] - rec[0, acquire.COL["t_us"]]) / 1e6 if len(rec) else np.zeros(0)
+    d2 = rec[:, acquire.COL["d2_um"]] / 1000.0 if len(rec) else np.zeros(0)
+    final = float(np.mean(d2[-20:])) if len(d2) else float("nan")
+    return {"t": t, "d2": d2, "final": final, "target_n": target_n}
+
+
+def _hook_slack(session, rig, anchor_mm):
+    client = session.client
+    acquire.hold(client, "position", int((anchor_mm + 0.2) * 1000), "d2_um", 50, timeout_s=8.0, measure_s=0.1)
+    client.call("stop")
+    rig.hook_gauge(anchor_mm)
+    return float(np.mean([rig.gauge_reading_n() for _ in range(3)]))
+
+
+def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4):
+    client = session.client
+    client.call("target", int(round(target_n * 1000)))
+    acquire.collect(client, settle_s)
+    rec = acquire.collect(client, measure_s)
+    gauge = -(rig.gauge_reading_n() - tare)  # actuator force = -gauge tension
+    return gauge, acquire.mean(rec, "force_mN") / 1000.0
+
+
+def dead_zone(session, rig, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
+    tare = _hook_slack(session, rig, anchor_mm)
+    client = session.client
+    client.call("reset")
+    client.call("mode", "force")
+    rows = []
+    for target in np.arange(0.0, top_n + 1e-9, step_n):
+        measured, estimate = _force_hold(session, rig, -target, tare, settle_s, 0.2)
+        rows.append({"target": -float(target), "measured": measured, "estimate": estimate})
+        progress_line("  dead zone: target %+.1f N, gauge %+.2f N" % (-target, measured))
+    end_progress()
+    client.call("stop")
+    dz = max([abs(r["target"]) for r in rows if abs(r["measured"]) < 0.5 * abs(r["target"])] or [0.0])
+    return rows, dz
+
+
+def force_steps(session, rig, anchor_mm, targets=(-5.0, -10.0, -15.0), settle_s=1.5):
+    tare = _hook_slack(session, rig, anchor_mm)
+    client = session.client
+    client.call("reset")
+    client.call("mode", "force")
+    rows = []
+    for target in targets:
+        measured, estimate = _force_hold(session, rig, target, tare, settle_s, 0.5)
+        rows.append({
+            "target": target, "measured": measured, "estimate": estimate,
+            "steady_pct": 100.0 * (measured - target) / abs(target),
+            "estimation_pct": 100.0 * (estimate - measured) / abs(measured) if measured else float("nan"),
+        })
+        progress_line("  step %+.0f N: gauge %+.2f N, estimate %+.2f N" % (target, measured, estimate))
+    end_progress()
+    client.call("stop")
+    rig.no_load()
+    return rows
+
+
+def plot_blocking(path, runs):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    for name, run in runs:
+        ax.plot(run["t"], run["d2"], label="%s: target %+.0f N, ends at %.1f mm" % (name, run["target_n"], run["final"]))
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("D2 (mm)")
+    ax.set_title("Force control at no load from D2 = 30 mm (paper Fig. 8)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)

@@ -1,0 +1,94 @@
+"""`host experiment paper`: calibrate, then run the paper's experiments, then write the report.
+
+One session on one board: the guided calibration (all three steps, logged), Fig. 3a from the
+logged pot sweep, Fig. 5 from the logged no-load sweep, Fig. 7 before (nominal 2-point pots) and
+after, Fig. 8 with and without the Df correction, the dead zone and Table 1. Every number in
+DIR/report.md is measured in this run. Targets and rounds are reduced from the paper to keep the
+virtual-board run short; the report says so.
+"""
+
+import csv
+import time
+from pathlib import Path
+
+import numpy as np
+
+from host.experiments import displacement, force_runs, model_compare, report, variants
+from host.guided.flow import STEPS, run_steps
+
+
+def _save_sweep(path, data):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["raw", "reference", "direction"])
+        for x, y, d in zip(data["raw"], data["ref"], data["direction"]):
+            w.writerow([int(x), "%.5f" % y, int(d)])
+
+
+def run_paper(session, rig, prompter, opts, out_dir, say=print):
+    out_dir = Path(out_dir)
+    t0 = time.monotonic()
+    timings = {}
+    results = {"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port}
+    results["model"] = "%s%s" % (opts.model, "" if opts.order is None else " order %d" % opts.order)
+
+    say("== calibration (all steps) ==")
+    accepted = run_steps(session, rig, prompter, STEPS, opts)
+    missing = [s for s in STEPS if s not in accepted]
+    if missing:
+        from host.errors import UserError
+
+        raise UserError("the experiments need every calibration step; not accepted: %s" % ", ".join(missing))
+    timings["calibration"] = time.monotonic() - t0
+    results["calibration"] = {s: accepted[s].lines for s in STEPS}
+    results["calibration_plots"] = [p.name for s in STEPS for p in accepted[s].plots]
+    pots = accepted["pots"].data
+    for pot in ("pot1", "pot2"):
+        _save_sweep(out_dir / ("sweep-%s.csv" % pot), pots[pot])
+    calibrated = Path(opts.out)
+
+    say("== Fig. 3a: objective vs order (pot 2 sweep of this run) ==")
+    t = time.monotonic()
+    p2 = pots["pot2"]
+    rows, _ = model_compare.run(p2["raw"], p2["ref"], p2["noise"], out_dir, "pot 2", say)
+    results["fig3a"] = rows
+    timings["fig3a"] = time.monotonic() - t
+
+    results["fig5"] = accepted["assembly"].data["stats"]
+    results["force_fit"] = {"coeffs_f": list(accepted["force"].data["coeffs_f"]),
+                            "coeffs_d": list(accepted["force"].data["coeffs_d"]),
+                            "hysteresis_n": accepted["force"].data["hysteresis_n"]}
+
+    t = time.monotonic()
+    bits = session.board["adc_bits"]
+    say("== Fig. 7 before: nominal 2-point pot calibration ==")
+    nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
+    session.flash(nominal)
+    before = displacement.run_targets(session, rig, opts.ref_scale, label="before")
+
+    say("== Fig. 8 without the Df correction ==")
+    session.flash(variants.write_without_df(out_dir / "calibration-without-df.json", calibrated))
+    blocking = [("without Df", force_runs.blocking_run(session, rig, 5.0))]
+
+    say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
+    session.flash(calibrated)
+    after = displacement.run_targets(session, rig, opts.ref_scale, label="after")
+    for target in (5.0, 1.0, 10.0):
+        blocking.append(("with Df", force_runs.blocking_run(session, rig, target)))
+    results["fig7"] = {"before": before, "after": after}
+    displacement.plot(out_dir / "fig7.png", before, after)
+    results["fig8"] = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]
+    force_runs.plot_blocking(out_dir / "fig8.png", blocking[:2])
+    timings["control"] = time.monotonic() - t
+
+    t = time.monotonic()
+    say("== force dead zone ==")
+    dz_rows, dz = force_runs.dead_zone(session, rig, opts.anchor_mm)
+    results["dead_zone"] = {"rows": dz_rows, "dead_zone_n": dz}
+    say("== Table 1: force steps ==")
+    results["table1"] = force_runs.force_steps(session, rig, opts.anchor_mm)
+    timings["force"] = time.monotonic() - t
+    timings["total"] = time.monotonic() - t0
+    results["timings"] = timings
+    path = report.write(out_dir, results, opts)
+    return path, results
