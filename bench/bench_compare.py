@@ -2,9 +2,10 @@
 
     .venv/bin/python bench/bench_compare.py [SWEEP.csv] [--runs 1]
 
-Runs the real CLI in a subprocess twice per run: with the environment as it is, and with
+Runs the real CLI in a subprocess three times per run: with the environment as it is, with
 OPENBLAS_NUM_THREADS=1 (small least-squares problems are much faster single-threaded when the
-CPUs are busy). Prints the per-model fit times the CLI reports and the total wall time.
+CPUs are busy), and with --jobs 2 worker processes. Prints the per-model fit times the CLI
+reports and the total wall time ("fitting" is the CLI's own figure, without start-up).
 """
 
 import argparse
@@ -19,16 +20,17 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parent.parent
 
 
-def run_once(sweep, env_extra):
+def run_once(sweep, env_extra, extra_args=()):
     env = dict(os.environ, **env_extra)
     with tempfile.TemporaryDirectory() as out:
         t0 = time.perf_counter()
-        proc = subprocess.run([sys.executable, "-m", "host", "compare", str(sweep), "--orders", "2-15", "--out", out],
+        proc = subprocess.run([sys.executable, "-m", "host", "compare", str(sweep), "--orders", "2-15", "--out", out,
+                               *extra_args],
                               capture_output=True, text=True, cwd=REPO, env=env)
         wall = time.perf_counter() - t0
     if proc.returncode != 0:
         raise SystemExit(proc.stderr)
-    models = re.findall(r"\] (\S+)\s+orders[ 0-9]*: \d+ fits in ([0-9.]+) s", proc.stderr)
+    models = re.findall(r"\] (\S+)\s+(?:orders[ 0-9]*: )?\d+ fits in ([0-9.]+) s", proc.stderr)
     fits = re.search(r"(\d+) fits in ([0-9.]+) s", proc.stdout)
     return wall, float(fits.group(2)), models
 
@@ -40,9 +42,14 @@ def main(argv=None):
     args = ap.parse_args(argv)
     print("host compare %s --orders 2-15 (models bcm,pcm,cheb,spline,lut,pwl); %d CPUs; load %s"
           % (Path(args.sweep).name, os.cpu_count(), " ".join("%.1f" % v for v in os.getloadavg())))
-    for label, extra in (("default threads", {}), ("OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"})):
+    configs = (
+        ("default threads", {}, ()),
+        ("OPENBLAS_NUM_THREADS=1", {"OPENBLAS_NUM_THREADS": "1"}, ()),
+        ("--jobs 2, 1 BLAS thread", {"OPENBLAS_NUM_THREADS": "1"}, ("--jobs", "2")),
+    )
+    for label, extra, extra_args in configs:
         for _ in range(args.runs):
-            wall, fitting, models = run_once(args.sweep, extra)
+            wall, fitting, models = run_once(args.sweep, extra, extra_args)
             per_model = ", ".join("%s %.2f s" % (m, float(s)) for m, s in models)
             print("%-24s wall %.2f s (fitting %.2f s): %s" % (label, wall, fitting, per_model))
     return 0

@@ -67,49 +67,92 @@ def parse_models(text):
     return names
 
 
-def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=None, options=None, on_order=None):
+def _fit_orders(x, y, name, orders, noise, opts, on_order=None):
+    """Rows for one model over `orders`, in order (warm-started where WARM_START says so)."""
+    m = len(x)
+    rows, previous = [], None
+    for order in orders:
+        row = dict.fromkeys(COLUMNS, float("nan"))
+        row.update(model=name, order=int(order), error="", monotone=False)
+        if on_order:
+            on_order(name, order)
+        try:
+            warm = WARM_START[name](previous) if previous is not None and name in WARM_START else {}
+            fit = fit_model(name, x, y, order, **opts, **warm)
+        except (ValueError, np.linalg.LinAlgError) as exc:
+            row["error"] = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        else:
+            row.update(
+                n_params=int(fit.n_params),
+                norm2=fit.rms * math.sqrt(m),
+                rms=fit.rms,
+                max_abs=fit.max_abs,
+                monotone=bool(fit.monotone),
+                fit_seconds=fit.fit_seconds,
+            )
+            if noise:
+                row["rms_over_noise"] = fit.rms / noise
+            previous = fit
+        rows.append(row)
+    return rows
+
+
+def _tasks(models, orders, jobs):
+    """(model, orders) work units: warm-started models stay whole, the others are split so that
+    the slow model (the BCM at high degree) spreads over the workers."""
+    tasks = []
+    for name in models:
+        if name in WARM_START or jobs <= 1:
+            tasks.append((name, list(orders)))
+        else:
+            tasks.extend((name, list(orders[i::jobs])) for i in range(jobs) if orders[i::jobs])
+    return tasks
+
+
+def compare_models(x, y, orders, models=DEFAULT_MODELS, noise=None, progress=None, options=None, on_order=None,
+                   jobs=1):
     """Fit every model at every order; returns a list of row dicts (keys: COLUMNS).
 
     A fit that fails (e.g. more parameters than samples) gives a row with NaN scores and the
     reason in `error`, so one bad cell never hides the rest of the table. `progress(model, i,
-    n, seconds)` is called after each model, `on_order(model, order)` before each fit;
-    `options` maps model -> extra fitter options.
+    n, seconds)` is called after each model (seconds: sum of its fit times), `on_order(model,
+    order)` before each fit (only with jobs=1); `options` maps model -> extra fitter options.
+    jobs > 1 fits in that many worker processes; the rows are the same, in the same order.
     """
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
-    m = len(x)
+    orders = list(orders)
+    by_model = {}
+    if jobs <= 1:
+        for i, name in enumerate(models):
+            by_model[name] = _fit_orders(x, y, name, orders, noise, (options or {}).get(name, {}), on_order)
+            if progress:
+                progress(name, i + 1, len(models), sum(r["fit_seconds"] for r in by_model[name] if not r["error"]))
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        tasks = _tasks(models, orders, jobs)
+        pending = {name: sum(1 for t in tasks if t[0] == name) for name in models}
+        done = 0
+        # spawn, not fork: a forked child can inherit a locked BLAS thread pool
+        with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = {
+                pool.submit(_fit_orders, x, y, name, sub, noise, (options or {}).get(name, {})): name
+                for name, sub in tasks
+            }
+            for future in as_completed(futures):
+                name = futures[future]
+                by_model.setdefault(name, []).extend(future.result())
+                pending[name] -= 1
+                if pending[name] == 0:
+                    done += 1
+                    if progress:
+                        progress(name, done, len(models),
+                                 sum(r["fit_seconds"] for r in by_model[name] if not r["error"]))
     rows = []
-    for i, name in enumerate(models):
-        opts = (options or {}).get(name, {})
-        seconds = 0.0
-        previous = None
-        for order in orders:
-            row = dict.fromkeys(COLUMNS, float("nan"))
-            row.update(model=name, order=int(order), error="", monotone=False)
-            if on_order:
-                on_order(name, order)
-            try:
-                warm = WARM_START[name](previous) if previous is not None and name in WARM_START else {}
-                fit = fit_model(name, x, y, order, **opts, **warm)
-            except (ValueError, np.linalg.LinAlgError) as exc:
-                row["error"] = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-                row["n_params"] = float("nan")
-            else:
-                row.update(
-                    n_params=int(fit.n_params),
-                    norm2=fit.rms * math.sqrt(m),
-                    rms=fit.rms,
-                    max_abs=fit.max_abs,
-                    monotone=bool(fit.monotone),
-                    fit_seconds=fit.fit_seconds,
-                )
-                if noise:
-                    row["rms_over_noise"] = fit.rms / noise
-                seconds += fit.fit_seconds
-                previous = fit
-            rows.append(row)
-        if progress:
-            progress(name, i + 1, len(models), seconds)
+    for name in models:
+        rows.extend(sorted(by_model[name], key=lambda r: r["order"]))
     return rows
 
 

@@ -131,3 +131,12 @@ def test_pwl_objective_never_rises_with_the_order_in_a_comparison(realdata_dir):
     norms = [r["norm2"] for r in rows]
     assert all(b <= a * (1 + 1e-9) for a, b in zip(norms, norms[1:])), norms
     assert norms[-1] < 0.5 * norms[3]
+
+
+def test_worker_processes_give_the_same_rows():
+    x = np.linspace(0, 4095, 400)
+    y = 60 * x / 4095 + 2 * np.tanh((x - 3700) / 80)
+    one = compare_models(x, y, [2, 3, 4, 5], ["bcm", "pcm", "pwl"], noise=0.01)
+    two = compare_models(x, y, [2, 3, 4, 5], ["bcm", "pcm", "pwl"], noise=0.01, jobs=2)
+    strip = [[(r["model"], r["order"], r["n_params"], r["norm2"]) for r in rows] for rows in (one, two)]
+    assert strip[0] == strip[1]

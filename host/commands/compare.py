@@ -24,6 +24,13 @@ def add_parser(subparsers):
         help="comma-separated models, or 'all' (default %s)" % ",".join(DEFAULT_MODELS),
     )
     p.add_argument("--out", metavar="DIR", default="compare_out", help="output directory (default compare_out)")
+    p.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        help="worker processes (default 1; more helps only when CPUs are idle: each worker "
+        "re-imports numpy/scipy, about 1 s)",
+    )
     p.add_argument("--quiet", action="store_true", help="no per-model progress on stderr")
     p.set_defaults(func=run)
 
@@ -37,6 +44,8 @@ def run(args):
         models = parse_models(args.models)
     except ValueError as exc:
         raise UserError(str(exc)) from None
+    if args.jobs < 1:
+        raise UserError("--jobs must be at least 1")
     sweep = load_sweep(args.sweep)
     try:
         noise = estimate_noise(sweep.x, sweep.y, sweep.direction)
@@ -59,10 +68,15 @@ def run(args):
         print(" %d" % order, end="", file=sys.stderr, flush=True)
 
     def progress(name, i, n, seconds):
-        if not args.quiet:
+        if args.quiet:
+            return
+        if name in started:  # its orders were shown as they started
             print(": %d fits in %.2f s" % (len(orders), seconds), file=sys.stderr, flush=True)
+        else:  # worker processes: one line per model as it completes
+            print("[%d/%d] %-7s %d fits in %.2f s" % (i, n, name, len(orders), seconds), file=sys.stderr, flush=True)
 
-    rows = compare_models(sweep.x, sweep.y, orders, models, noise=noise, progress=progress, on_order=on_order)
+    rows = compare_models(sweep.x, sweep.y, orders, models, noise=noise, progress=progress,
+                          on_order=on_order if args.jobs == 1 else None, jobs=args.jobs)
     wall = time.perf_counter() - t0
     stem = Path(args.sweep).stem
     try:
