@@ -7,9 +7,13 @@ outside), the form the firmware's fixed-point `pwl` runs.
   squares solution on the hat (linear B-spline) basis. n_params = k (the positions are implied).
 - `fit_pwl(x, y, k)`: k knots whose k - 2 interior positions are optimised (the ends stay at
   the x range). For given positions the values are again linear least squares (variable
-  projection), so only the positions are searched: `scipy.optimize.least_squares` over the
-  sorted interior positions from several starts (evenly spaced, a dynamic-programming
-  segmentation, seeded random ones). n_params = 2k - 2 (k - 2 positions + k values).
+  projection), so only the positions are searched: Levenberg-Marquardt
+  (`scipy.optimize.least_squares`) with an analytic Jacobian over log-gaps (knots stay ordered)
+  from several starts (evenly spaced, a dynamic-programming segmentation, seeded random ones,
+  and optionally a smaller fit's knots grown by splitting its worst span). Long sweeps are
+  searched on bin means; values are always solved on every sample. The even start is kept if
+  nothing beats it, so pwl-k is never worse than lut-k. n_params = 2k - 2 (k - 2 positions +
+  k values).
 """
 
 import numpy as np
