@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 from scipy.interpolate import BSpline, PchipInterpolator
 
 from host.models import fit_model
-from host.piecewise_linear import fit_lut, fit_pwl, lsq_knot_values
+from host.piecewise_linear import fit_lut, fit_pwl, grow_knots, lsq_knot_values
 from host.polynomial import fit_chebyshev, fit_pcm, fit_pcm_raw
 from host.spline import cubic_knot_vector, fit_pchip, fit_spline
 from host.sweep import load_sweep
@@ -201,3 +201,15 @@ def test_real_data_sets_fit_with_every_model(realdata_dir):
         assert rms["pcm-raw", 8] == pytest.approx(rms["pcm", 8], rel=1e-6)
         # the paper's claim, checked loosely on real knee data: BCM-3 beats PCM-3 on every curve
         assert rms["bcm", 3] < rms["pcm", 3], path.name
+
+
+def test_pwl_grown_from_a_smaller_fit_is_never_worse():
+    rng = np.random.default_rng(9)
+    y = np.interp(CODES, [0, 200, 1900, 2100, 3900, 4095], [0, 4, 20, 40, 56, 60]) + rng.normal(0, 0.03, CODES.size)
+    small = fit_model("pwl", CODES, y, 4)
+    grown = grow_knots(CODES, y, small.coefficients["knots_x"], 6)
+    assert len(grown) == 6 and set(small.coefficients["knots_x"]) <= set(grown)
+    big = fit_model("pwl", CODES, y, 6, start_knots=small.coefficients["knots_x"])
+    assert big.rms <= small.rms
+    assert any("grown" in n for n in big.notes)
+    assert big.rms < 0.035  # six knots can follow all five segments: noise floor 0.03
