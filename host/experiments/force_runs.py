@@ -50,7 +50,7 @@ def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4):
 def dead_zone(session, rig, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
     tare = _hook_slack(session, rig, anchor_mm)
     client = session.client
-    client.call("reset")
+    acquire.reset(client)
     client.call("mode", "force")
     rows = []
     for target in np.arange(0.0, top_n + 1e-9, step_n):
@@ -66,7 +66,7 @@ def dead_zone(session, rig, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
 def force_steps(session, rig, anchor_mm, targets=(-5.0, -10.0, -15.0), settle_s=1.5):
     tare = _hook_slack(session, rig, anchor_mm)
     client = session.client
-    client.call("reset")
+    acquire.reset(client)
     client.call("mode", "force")
     rows = []
     for target in targets:

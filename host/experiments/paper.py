@@ -30,7 +30,10 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     t0 = time.monotonic()
     timings = {}
     results = {"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port}
-    results["model"] = "%s%s" % (opts.model, "" if opts.order is None else " order %d" % opts.order)
+    from host.commands.fit import DEFAULT_ORDER
+
+    order = opts.order if opts.order is not None else DEFAULT_ORDER.get(opts.model)
+    results["model"] = "%s%s" % (opts.model, "" if order is None else " order %d" % order)
 
     say("== calibration (all steps) ==")
     accepted = run_steps(session, rig, prompter, STEPS, opts)

@@ -84,7 +84,7 @@ def write(out_dir, r, opts, command=None):
     add("| displacement control (Fig. 7), max error 1-59 mm | 14.4 -> 4.2 mm (-70.8 %%) | %s -> %s mm (%+.1f %%) | <= 0.1 mm: %s |" % (
         _f(before), _f(after), 100 * (after / before - 1), _met(after <= TARGETS["displacement_mm"])))
     add("| force control 5 N at no load from 30 mm (Fig. 8) | blocks at 43.1 mm without Df; runs to 60 mm with | "
-        "without Df ends at %s mm; with Df ends at %s mm | no blocking 1-10 N: %s |" % (
+        "without Df ends at %s mm; with Df ends at %s | no blocking 1-10 N: %s |" % (
             _f(without[0]["final"], 1) if without else "-",
             ", ".join("%s mm (%+.0f N)" % (_f(b["final"], 1), b["target_n"]) for b in with_df), _met(no_block)))
     add("| force dead zone (0-5 N, 0.2 N steps) | about 0.4 N | %s N | - |" % _f(r["dead_zone"]["dead_zone_n"], 1))

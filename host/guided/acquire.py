@@ -20,6 +20,13 @@ STALL_S = 0.4  # no pot moved more than STALL_CODES for this long: at the end st
 STALL_CODES = 10
 
 
+def reset(client):
+    """Clear latched faults and go idle. The firmware runs `reset` after its reply is out, at
+    the end of that link poll, so wait before the next command or the reset would undo it."""
+    client.call("reset")
+    time.sleep(0.1)
+
+
 def collect(client, seconds, until=None, hz=STREAM_HZ):
     """Telemetry records (int array, columns P.FIELDS) for `seconds` or until `until(records)`."""
     client.start_stream(hz)
@@ -62,8 +69,7 @@ def open_stroke(client):
 
 def drive_to_stop(client, duty, max_s=20.0):
     """Open loop at `duty` until the pots stop moving (an end stop); motor off; the records."""
-    client.call("reset")
-    time.sleep(0.05)
+    reset(client)
     client.call("mode", "open_loop")
     client.call("target", int(duty))
     try:
@@ -101,7 +107,7 @@ def sweep(client, duty, say=None):
 def hold(client, mode, target, field, tolerance, timeout_s=8.0, measure_s=0.3):
     """Settle `mode` at `target` (through host.board_client.settle), then log `measure_s` more
     seconds still in that mode: (settled, records of the measurement)."""
-    client.call("reset")
+    reset(client)
     ok, _, _ = settle(client, mode, target, field, tolerance, timeout_s=timeout_s, hold_s=0.2)
     return ok, collect(client, measure_s)
 

@@ -34,7 +34,9 @@ def force_points(session, rig, prompter, opts):
     ok, _ = acquire.hold(client, "position", int((anchor + 1.5) * 1000), "d2_um", 300, timeout_s=10)
     client.call("stop")
     if not ok:
-        raise UserError("could not move the block to %.1f mm to hook the fibre slack" % (anchor + 1.5))
+        status = client.call("status")
+        raise UserError("could not move the block to %.1f mm to hook the fibre slack (mode %s, faults %s)" % (
+            anchor + 1.5, status.get("mode"), ", ".join(status.get("faults") or []) or "none"))
     rig.hook_gauge(anchor)
     prompter.say("  taring the gauge")
     tare = _gauge(rig, 3)

@@ -73,6 +73,10 @@ def calibrate_pots(session, rig, prompter, opts):
             raw, ref, direction = adc_sweep(session, rig, pot, opts.duty, opts.ref_scale, prompter.say)
         prompter.say("  %d samples in %.1f s" % (len(raw), time.monotonic() - t0))
         found, noise, hyst = checks.check_sweep(raw, ref, direction, bits, opts.limits)
+        status = session.client.call("status")
+        if status.get("faults"):  # e.g. a wiper that lifted: the firmware stopped the motor
+            found.append(checks.Check("faults", False, float(len(status["faults"])), 0, "firmware faults",
+                                      "the firmware stopped the motor: %s; fix the wiring, then run again" % status.get("last_fault")))
         lines += ["%s check %s" % (pot, c.line()) for c in found]
         ok = all(c.ok for c in found)
         all_ok &= ok

@@ -1,0 +1,95 @@
+"""Guided calibration end to end on the virtual board (real firmware on MicroPython behind a pty).
+
+One shortened full run (faster sweeps, one force round) is shared by the tests of this module:
+every section is written and verifies, the firmware reports the file's CRC after each flash, and
+closed-loop position errors measured by the reference sensor shrink against the nominal 2-point
+pot calibration. A rig fault (a lifted wiper) makes the pot step refuse its sweep under --yes.
+"""
+
+import json
+import re
+
+import numpy as np
+import pytest
+
+from host.calibration_file import read_calibration
+from host.cli import build_parser
+from host.commands.calibrate import calibrate
+from host.errors import UserError
+
+SHORT = ["--yes", "--duty", "3000", "--rounds", "1", "--levels", "4"]
+
+
+@pytest.fixture(scope="module")
+def full_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("cal") / "calibration.json"
+    said = []
+    args = build_parser().parse_args(["calibrate", "--port", "sim", "--out", str(out)] + SHORT)
+    accepted = calibrate(args, say=said.append)
+    return out, accepted, said
+
+
+def test_every_step_is_accepted_written_and_verified(full_run):
+    out, accepted, said = full_run
+    assert list(accepted) == ["pots", "assembly", "force"]
+    doc = read_calibration(out)  # CRC and every section checked by the firmware's own parser
+    for name in ("pot1", "pot2", "df", "force", "force_inverse"):
+        assert doc[name] and doc[name]["fixed"], name
+    assert doc["pot1"]["model"] == "bcm" and doc["pot1"]["order"] == 3
+    crcs = [int(m.group(1), 16) for m in map(re.compile(r"firmware runs calibration crc ([0-9a-f]{8})").search, said) if m]
+    assert len(crcs) == 3 and len(set(crcs)) == 3  # one flash per step, each a new file
+    assert crcs[-1] == json.loads(out.read_text())["crc32"]
+    for png in ("calibration-pot1.png", "calibration-pot2.png", "calibration-df.png", "calibration-force.png"):
+        assert (out.parent / png).stat().st_size > 10000
+
+
+def test_fits_are_sane(full_run):
+    _, accepted, _ = full_run
+    pots = accepted["pots"].data
+    for pot in ("pot1", "pot2"):
+        assert pots[pot]["fit"].rms < 0.2  # mm; BCM-3 on knee pots, far below the ~2 mm of a straight line
+        assert pots[pot]["ref"].max() - pots[pot]["ref"].min() > 55
+    df = accepted["assembly"].data["stats"]
+    assert df["peak_before_mm"] > 3.0  # the simulated assembly error is ~4.6 mm at the ends
+    assert df["peak_after_mm"] < df["peak_before_mm"] / 5
+    cf = accepted["force"].data["coeffs_f"]
+    assert 10.0 < cf[-2] < 15.0  # stiffness near 12.4 N/mm
+
+
+def test_closed_loop_error_is_smaller_after_calibration(full_run, tmp_path):
+    from host.experiments import displacement, variants
+    from host.guided.prompts import Prompter
+    from host.guided.rig import Rig, reference_scale
+    from host.guided.session import Session
+
+    out, accepted, _ = full_run
+    nominal = variants.write_nominal(tmp_path / "nominal.json", out, accepted["pots"].data, 12)
+    prompter = Prompter(yes=True, out=lambda s: None)
+    with Session("sim", None, out, say=lambda s: None) as session:
+        scale = reference_scale(session.board)
+        rig = Rig(prompter, session.root)
+        after = displacement.run_targets(session, rig, scale, targets=(3, 30, 57))
+        session.flash(nominal)
+        before = displacement.run_targets(session, rig, scale, targets=(3, 30, 57))
+    assert all(r["settled"] for r in after)
+    e_after, e_before = displacement.max_error(after), displacement.max_error(before)
+    assert e_after < 0.5 and e_after < e_before / 3, (e_before, e_after)
+
+
+def test_a_lifted_wiper_is_refused_under_yes(tmp_path):
+    from host.guided.flow import Options, run_steps
+    from host.guided.prompts import Prompter
+    from host.guided.rig import Rig, reference_scale
+    from host.guided.session import Session
+
+    said = []
+    prompter = Prompter(yes=True, out=said.append)
+    opts = Options(out=tmp_path / "c.json", out_dir=tmp_path, duty=3000, flash=False)
+    with Session("sim", None, None, say=said.append) as session:
+        opts.ref_scale = reference_scale(session.board)
+        rig = Rig(prompter, session.root)
+        rig.state["fault"] = {"channel": "pot2", "rail": "low"}
+        with pytest.raises(UserError, match="pots step failed its checks"):
+            run_steps(session, rig, prompter, ("pots",), opts)
+    assert any("FAIL faults" in s and "pot2" in s for s in said), said
+    assert not (tmp_path / "c.json").exists() or "pot2" not in read_calibration(tmp_path / "c.json")
