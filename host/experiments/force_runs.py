@@ -35,7 +35,7 @@ def _hook_slack(session, rig, anchor_mm):
     acquire.hold(client, "position", int((anchor_mm + 0.2) * 1000), "d2_um", 50, timeout_s=8.0, measure_s=0.1)
     client.call("stop")
     rig.hook_gauge(anchor_mm)
-    return float(np.mean([rig.gauge_reading_n() for _ in range(3)]))
+    return float(np.mean([rig.gauge_reading_n() for _ in range(3 if rig.virtual else 1)]))
 
 
 def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4):
