@@ -1,9 +1,15 @@
 """The `host` command line: discovers one subcommand per module in `host.commands`."""
 
-import argparse
+import os
+
+# Our least-squares problems are small: on a busy 2-core machine a threaded BLAS makes each solve
+# up to 100x slower (measured by bench/bench_compare.py). Set before numpy is first imported.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import argparse  # noqa: E402
 import importlib
-import pkgutil
-import sys
+import pkgutil  # noqa: E402
+import sys  # noqa: E402
 
 import host
 import host.commands
