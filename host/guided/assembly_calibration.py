@@ -49,6 +49,16 @@ def choose_order(x, y, order):
     return int(order), scores
 
 
+def binned_peak(x, resid, width=1.0):
+    """Largest |mean residual| over bins `width` mm wide in D1: the curve's error, without the
+    per-sample noise of two pot readings (bins with fewer than 5 samples are skipped)."""
+    idx = np.floor((x - np.min(x)) / width).astype(int)
+    counts = np.bincount(idx)
+    sums = np.bincount(idx, weights=resid)
+    full = counts >= 5
+    return float(np.max(np.abs(sums[full] / counts[full]))) if full.any() else float("nan")
+
+
 def fit_df(d1_mm, df_mm, order):
     order, scores = choose_order(d1_mm, df_mm, order)
     coeffs = np.polyfit(d1_mm, df_mm, order)
@@ -71,13 +81,15 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     lines = [
         "Df: %d samples over D1 %.1f..%.1f mm" % (len(x), lo, hi),
         "Df: cross-validated rms by order: " + ", ".join("%d: %.1f um" % (n, 1000 * s) for n, s in scores.items()),
-        "Df: order %d, peak |Df| before %.3f mm, peak residual after %.3f mm (rms %.1f um)" % (
-            order, np.max(np.abs(df)), np.max(np.abs(resid)), 1000 * np.sqrt(np.mean(resid**2))),
+        "Df: order %d, peak |Df| before %.3f mm, peak residual after %.3f mm of single samples, %.3f mm of "
+        "1 mm bin means (rms %.1f um)" % (order, np.max(np.abs(df)), np.max(np.abs(resid)), binned_peak(x, resid),
+                                          1000 * np.sqrt(np.mean(resid**2))),
     ]
     ok = span >= opts.limits.min_range_mm
     if not ok:
         lines.append("Df: FAIL the sweep covered only %.1f mm: let the block run end to end" % span)
     stats = {"order": order, "peak_before_mm": float(np.max(np.abs(df))), "peak_after_mm": float(np.max(np.abs(resid))),
+             "peak_after_binned_mm": binned_peak(x, resid),
              "rms_after_mm": float(np.sqrt(np.mean(resid**2))), "n_samples": int(len(x))}
     section = poly_section(coeffs, (lo - 0.05 * span, hi + 0.05 * span), 1000.0, 1000.0, ("um", "um"), stats)
     png = opts.out_dir / "calibration-df.png"
