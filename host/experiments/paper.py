@@ -11,7 +11,6 @@ import csv
 import time
 from pathlib import Path
 
-import numpy as np
 
 from host.experiments import displacement, force_runs, model_compare, report, variants
 from host.guided.flow import STEPS, run_steps
