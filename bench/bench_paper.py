@@ -53,7 +53,7 @@ def main(argv=None):
             platform.platform(terse=True), platform.python_version(), __import__("os").cpu_count() or 0, wall, rel),
         "",
     ]
-    Path(args.doc).write_text("\n".join(header) + body)
+    Path(args.doc).write_text("\n".join(header) + "\n" + body)
     print("wrote %s" % args.doc)
     return 0
 
