@@ -309,6 +309,15 @@ def fit_bcm(x, y, order, bounds="data", starts=None, seed=0, monotone="check", m
     basis_b = basis if wt is None else bernstein(tb, order)
     notes = [] if wt is None else ["weights searched on %d bin means of the %d samples" % (tb.size, t.size)]
     start_points = _starts(free.size, lo, hi, starts, seed, interior)
+    if order >= 4:
+        # One more start: a degree n-1 fit elevated exactly to degree n. The handle solve at its
+        # weights already matches that curve, so this start is never worse than that fit, and it
+        # sits in the basin the lower degree found (the generic starts can miss it at higher
+        # degree). The lower fit is itself warm-started the same way down to degree 3, so above
+        # degree 4 it uses 1 generic start to keep the chain cheap. Degrees 1-3 stay as they were.
+        lower = fit_bcm(x, y, order - 1, bounds, 1 if order > 4 else None, seed, "off", max_search_points)
+        w = np.asarray(elevate(lower.coefficients, order)["weights"])
+        start_points.append(np.clip(np.log(w[free] / (w[0] if bounds == "data" else w.min())), lo, hi))
     theta = None
     if monotone != "force":
         theta = _search(lambda: _Projection(basis_b, yb, free, plo, phi, wt=wt), start_points, lo, hi)

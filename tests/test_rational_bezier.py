@@ -135,3 +135,15 @@ def test_real_data_sets_fit(realdata_dir):
 
 def test_log_weight_box_is_sixty():
     assert abs(np.exp(LN60) - 60) < 1e-9
+
+
+def test_higher_degree_is_never_worse_and_reaches_the_global_basin(example_sweep, realdata_dir):
+    # the degree n-1 fit, elevated, is one of degree n's starts
+    s = example_sweep
+    rms = [fit_model("bcm", s.x, s.y, n).rms for n in range(3, 9)]
+    assert all(b <= a * (1 + 1e-9) for a, b in zip(rms, rms[1:]))
+    r = load_sweep(realdata_dir / "esp32_adc_rupayan555.csv")
+    fast = fit_model("bcm", r.x, r.y, 4)
+    best = fit_bcm_global(r.x, r.y, 4)
+    residual_stats(best, r.x, r.y)
+    assert fast.rms <= 1.01 * best.rms
