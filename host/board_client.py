@@ -225,9 +225,13 @@ def add_port_arguments(parser):
     parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
 
 
-def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None):
+def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, window=10):
     """Run `mode` towards `target` until telemetry `field` stays within `tolerance` of it for
-    `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away."""
+    `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away.
+
+    The value judged is the mean of the last `window` records (0.1 s at the 100 Hz stream): a
+    single reading carries the pots' noise, which near a knee (where one code spans ~3x more
+    travel) is as large as a tight tolerance, so a still actuator would rarely look settled."""
     index = P.FIELDS.index(field)
     board.call("mode", mode)
     board.call("target", int(target))
@@ -235,16 +239,19 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
     start = time.monotonic()
     inside_since = None
     value = None
+    recent = []
     next_progress = start
     try:
         while time.monotonic() - start < timeout_s:
             board.heartbeat_if_due()
             for frame in board.frames(timeout=0.05):
-                value = int(frame.records()[-1, index])
-            if value is None:
+                recent.extend(int(v) for v in frame.records()[:, index])
+            if not recent:
                 continue
+            del recent[:-window]
+            value = sum(recent) / len(recent)
             now = time.monotonic()
-            if abs(value - target) <= tolerance:
+            if len(recent) == window and abs(value - target) <= tolerance:
                 inside_since = inside_since or now
                 if now - inside_since >= hold_s:
                     return True, value, now - start
