@@ -42,16 +42,16 @@ PARAMS = (
     ("kp_pos", 768, 0, GAIN_MAX),  # Q8 duty per um of position error
     ("ki_pos", 16, 0, GAIN_MAX),  # Q8 duty per um per step, into the Q8 integral
     ("kp_force", 2560, 0, GAIN_MAX),  # Q8 duty per um of deformation error
-    ("ki_force", 1024, 0, GAIN_MAX),
+    ("ki_force", 8192, 0, GAIN_MAX),
     ("out_limit", 8000, 0, DUTY_MAX),  # |PI output| limit, duty
     ("int_limit", 6000, 0, DUTY_MAX),  # |integral| limit, duty
     ("slew", 500, 0, DUTY_MAX),  # max duty change per step (0 = unlimited)
     ("host_timeout_ms", 1000, 0, 600000),  # host silence that stops the motor (0 = off)
     ("rail_reads", 4, 1, 1000),  # consecutive reads at a rail that make a fault
     ("rail_margin", 0, 0, 255),  # codes from the rail that count as "at the rail"
-    ("stroke_min_um", 1000, -65535, 65535),  # soft stroke limits on D1* and D2
-    ("stroke_max_um", 59000, -65535, 65535),
-    ("slow_zone_um", 3000, 1, 65535),  # duty fades to 0 over this distance before a limit
+    ("stroke_min_um", 500, -65535, 65535),  # soft stroke limits on D1* and D2
+    ("stroke_max_um", 59500, -65535, 65535),
+    ("slow_zone_um", 5000, 1, 65535),  # |duty| toward a limit is capped, falling to 0 over this
 )
 _T_MASK = const(0x3FFFFFFF)
 
@@ -141,7 +141,9 @@ class Controller:
                 )
 
     def _stroke_limit(self, cmd, d1, d2):
-        """Soft stroke limits: the duty fades to 0 across slow_zone_um before either end."""
+        """Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room / slow_zone_um,
+        so a fast approach slows over the last slow_zone_um and stops at the limit, while a
+        smaller command (a loop holding a target inside the zone) passes unchanged."""
         p = self.p
         if cmd > 0:
             room = p[P_STROKE_MAX] - (d1 if d1 > d2 else d2)
@@ -153,5 +155,9 @@ class Controller:
             return 0
         zone = p[P_SLOW_ZONE]
         if room < zone:
-            return (cmd * room) // zone  # |cmd| <= 10000, room < 65536: < 2**30
+            cap = (DUTY_MAX * room) // zone  # room < zone <= 65535: < 2**30
+            if cmd > cap:
+                return cap
+            if cmd < -cap:
+                return -cap
         return cmd

@@ -92,6 +92,20 @@ def test_physical_wiper_lift_stops_motor_next_tick(tmp_path, cal_data, pot):
     assert here == on_micropython(call)
 
 
+def test_soft_stroke_limits_stop_short_of_the_end_stops_and_targets_inside_them_settle(tmp_path, cal_data):
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps({"cal": cal_data}))
+    call = "case_stroke_limits_sim(%r)" % str(path)
+    here = eval("sim_cases." + call)
+    assert here == on_micropython(call)
+    # full duty toward each end: stopped by the firmware within 0.3 mm of its limit (the
+    # calibration's error and the stopping distance), never at the hard stops (0 and 60 mm)
+    assert 59200 <= here["top_um"] <= 59800, here
+    assert 200 <= here["bottom_um"] <= 800, here
+    # a target 0.5 mm inside the limit, in the slow zone, is reached (pot 2's wiper travel)
+    assert abs(here["held_um"] - here["target_um"]) <= 50, here
+
+
 def test_run_in_real_time_on_sim_returns_with_motor_off():
     here = sim_cases.case_run_realtime_sim()
     assert here == on_micropython("case_run_realtime_sim()")

@@ -150,6 +150,65 @@ def case_wiper_lift_sim(path, pot):
     return {"fault": st["last_fault"]}
 
 
+def case_stroke_limits_sim(path, duty=10000, ticks=1500):
+    """Soft stroke limits on the simulated actuator: open loop at `duty` toward each end stops
+    the motor with the nut and the block short of the firmware's limit and off the hard end stop,
+    and only slows near it; a position target inside the slow zone still settles.
+    Returns the extremes reached (um, true positions) and the duty seen on the way."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    lo = app.get_param("stroke_min_um")
+    hi = app.get_param("stroke_max_um")
+    zone = app.get_param("slow_zone_um")
+    sim.run_ticks(10)
+    out = {}
+    for sign in (1, -1):
+        app.set_mode("open_loop")
+        app.set_target(sign * duty)
+        extreme = -1000.0
+        far_duty = 0  # the largest duty while more than a slow zone from the limit
+        k = 0
+        while k < ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            m = app.ctrl.meas
+            pos = world.block_mm if sign > 0 else -world.block_mm
+            nut = world.nut_mm if sign > 0 else -world.nut_mm
+            if max(pos, nut) > extreme:
+                extreme = max(pos, nut)
+            room = hi - max(m.d1, m.d2) if sign > 0 else min(m.d1, m.d2) - lo
+            if room > zone and abs(app.ctrl.duty) > far_duty:
+                far_duty = abs(app.ctrl.duty)
+            if room < zone // 4:
+                assert abs(app.ctrl.duty) <= 10000 * max(room, 0) // zone + 1, (room, app.ctrl.duty)
+            k += 1
+        assert app.ctrl.duty == 0 or abs(app.ctrl.duty) <= 10000 * 100 // zone, app.ctrl.duty
+        assert far_duty == duty, far_duty  # full speed away from the ends: a cap, not a fade
+        out["top_um" if sign > 0 else "bottom_um"] = int(extreme * 1000.0) * sign
+    assert world.block_mm > 0.05 and world.nut_mm > 0.05, (world.block_mm, world.nut_mm)
+    app.set_mode("position")
+    target = hi - zone // 6
+    app.set_target(target)
+    k = 0
+    while k < 3000:
+        sim.run_ticks(1)
+        app.heartbeat()
+        k += 1
+    out["held_um"] = int(world.pots[1].wiper_mm(world.block_mm) * 1000.0)
+    out["target_um"] = target
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [], st
+    return out
+
+
 class QuittingLink:
     """Polled by run(): keeps the host alive, drives open loop, asks run() to return after
     `ms` of wall-clock time (the simulated board advances in real time in machine.idle())."""
