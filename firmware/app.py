@@ -150,7 +150,8 @@ class App:
         if mode == POSITION:
             c.target = c.meas.d2  # hold where it is until told otherwise
         elif mode == FORCE:
-            c.defl_target = c.meas.deformation_for(0)
+            c.meas.deformation_targets(0, c.defl_targets)
+            c.fdir = 0
             c.target = 0
         else:
             c.target = 0
@@ -169,7 +170,7 @@ class App:
         elif c.mode == FORCE:
             if not -FORCE_TARGET_MAX_MN <= value <= FORCE_TARGET_MAX_MN:
                 raise ValueError("force target must be within +-%d mN" % FORCE_TARGET_MAX_MN)
-            c.defl_target = c.meas.deformation_for(value)
+            c.meas.deformation_targets(value, c.defl_targets)
         c.target = value
 
     def params(self):

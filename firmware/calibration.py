@@ -11,7 +11,9 @@ json.dumps orders keys and spaces differently from CPython's). The payload repea
 the version is also covered by the CRC. Payload keys: "schema", "board", "date", "pots"
 (identity of pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl",
 "fixed": [ints], ...float coefficients and fit statistics for people}), and the optional
-"df", "force", "force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null).
+"df", "force", "force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null),
+and the optional "friction" ({"kind": "friction", "fixed": [h_mN], ...}: the output block's
+Coulomb friction, see firmware/measurement.py).
 
 `load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
 integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
@@ -32,6 +34,8 @@ FORMAT = "lsea-kit calibration"
 SCHEMA = 1
 POT_SECTIONS = ("pot1", "pot2")
 POLY_SECTIONS = ("df", "force", "force_inverse")
+FRICTION_SECTION = "friction"
+FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
 LIMIT = 1 << 30
 
 
@@ -141,8 +145,21 @@ def poly_constants(section, name):
     return array("i", values)
 
 
+def friction_constants(section, name=FRICTION_SECTION):
+    """array('i', [h_mN]) of a friction section, checked; None when absent."""
+    if section is None:
+        return None
+    if not isinstance(section, dict) or section.get("kind", "friction") != "friction":
+        raise CalibrationError("section %s: not a friction section" % name)
+    values = _int_list(section, name)
+    _check(len(values) == 1, name, "needs [friction mN]")
+    _check(0 <= values[0] <= FRICTION_MAX_MN, name, "friction must be 0..%d mN" % FRICTION_MAX_MN)
+    return array("i", values)
+
+
 class Calibration:
-    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None."""
+    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None,
+    friction as [h_mN] or None."""
 
     def __init__(self, body, crc):
         for name in POT_SECTIONS:
@@ -153,6 +170,7 @@ class Calibration:
         self.df = poly_constants(body.get("df"), "df")
         self.force = poly_constants(body.get("force"), "force")
         self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
+        self.friction = friction_constants(body.get(FRICTION_SECTION))
         self.crc = crc
         self.board = body.get("board")
         self.date = body.get("date")

@@ -68,7 +68,8 @@ class Controller:
         self.period_us = 1000000 // loop_hz
         self.mode = IDLE
         self.target = 0  # duty (open_loop), um (position) or mN (force)
-        self.defl_target = 0  # um, from the force target through d(F0)
+        self.defl_targets = array("i", [0, 0, 0])  # um per friction direction -1/0/+1 (Measurement)
+        self.fdir = 0  # force mode: which side of the friction band the spring must work from
         self.duty = 0
         self.t_us = 0
         self.steps = 0
@@ -119,8 +120,19 @@ class Controller:
             elif mode == POSITION:
                 cmd = self.pi.update(self.target - m.d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT])
             else:
+                # With the block's friction h calibrated, the load's force only moves once the
+                # spring force leaves a band 2h wide: to lower it the spring must work from the
+                # band's lower edge (target - h), to raise it from the upper one. Which edge is
+                # decided by the load-force estimate against the target, with h/8 of hysteresis
+                # so that the choice does not chatter once the target is reached.
+                e = self.target - m.force
+                tol = m.fric >> 3
+                if e < -tol:
+                    self.fdir = 1
+                elif e > tol:
+                    self.fdir = -1
                 cmd = self.pi.update(
-                    self.defl_target - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]
+                    self.defl_targets[self.fdir + 1] - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]
                 )
             if m is not None:
                 cmd = self._stroke_limit(cmd, m.d1, m.d2)

@@ -20,10 +20,12 @@ from pathlib import Path
 
 from firmware.calibration import (
     FORMAT,
+    FRICTION_SECTION,
     POLY_SECTIONS,
     POT_SECTIONS,
     SCHEMA,
     CalibrationError,
+    friction_constants,
     parse_document,
     payload_crc,
     poly_constants,
@@ -32,7 +34,7 @@ from firmware.calibration import (
 from host.errors import UserError
 from host.fixed_export import export_poly, export_pot
 
-SECTIONS = POT_SECTIONS + POLY_SECTIONS
+SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION,)
 INFO_KEYS = ("board", "date", "pots")
 
 
@@ -72,6 +74,7 @@ def check_sections(doc):
                 pot_constants(doc[name], name)
         for name in POLY_SECTIONS:
             poly_constants(doc.get(name), name)
+        friction_constants(doc.get(FRICTION_SECTION))
     except CalibrationError as e:
         raise UserError(str(e)) from None
 
@@ -188,3 +191,9 @@ def poly_section(coeffs_high_first, x_range, in_scale, out_scale, units, stats=N
         "fixed": list(fixed),
         "fixed_check": fixed.report(),
     }
+
+
+def friction_section(friction_n, stats=None):
+    """The output block's Coulomb friction (N, >= 0) for the firmware's load-force estimate."""
+    return {"kind": "friction", "friction_n": float(friction_n), "fit": stats or {},
+            "fixed": [int(round(max(0.0, friction_n) * 1000.0))]}

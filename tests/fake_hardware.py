@@ -131,7 +131,7 @@ def model_calibration(board=None, n_points=61):
     at zero load over the stroke, fitted by an 8th-order polynomial in D1 (Df is a quartic in the
     true position, not in D1, which pot 1's own mounting error distorts: order 4 leaves ~0.36 mm,
     order 8 ~26 um). Force: F0(d) and d(F0) fitted (cubic) to the model's spring curve over the
-    cavity. Returns a JSON-able dict.
+    cavity, and the block's Coulomb friction. Returns a JSON-able dict.
     """
     import numpy as np
 
@@ -164,6 +164,7 @@ def model_calibration(board=None, n_points=61):
     f = np.array([world.spring_force(v) for v in d])
     cal["force"] = list(export_poly(np.polyfit(d, f, 3), -cav, cav, 1000, 1000))
     cal["force_inverse"] = list(export_poly(np.polyfit(f, d, 3), float(f.min()), float(f.max()), 1000, 1000))
+    cal["friction"] = [int(round(float(board["actuator"]["block"]["coulomb_n"]) * 1000))]  # the block's Coulomb, mN
     return cal
 
 

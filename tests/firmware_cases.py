@@ -32,6 +32,7 @@ class Cal:
         self.df = array("i", d["df"]) if d.get("df") else None
         self.force = array("i", d["force"]) if d.get("force") else None
         self.force_inverse = array("i", d["force_inverse"]) if d.get("force_inverse") else None
+        self.friction = array("i", d["friction"]) if d.get("friction") else None
         self.crc = 12345
         self.board = "sim"
         self.version = 1
@@ -252,7 +253,7 @@ def case_refused_without_calibration(path):
     _run_steps(app.step, 100)
     assert app.ctrl.duty == 2000 and app.sampler.raw1 > 0
     # a calibration without the force steps: position works, force is refused with the reason
-    cal = dict(data["cal"], df=None, force=None, force_inverse=None)
+    cal = dict(data["cal"], df=None, force=None, force_inverse=None, friction=None)
     app.set_calibration(Cal(cal))
     app.set_mode("position")
     try:
@@ -261,6 +262,34 @@ def case_refused_without_calibration(path):
     except ValueError as exc:
         assert "Df" in str(exc) or "force" in str(exc), str(exc)
     return {"error": st["calibration_error"]}
+
+
+def case_load_force_play(path):
+    """The load-force estimate with a calibrated block friction h is a play operator of width h
+    on the (low-passed) spring force: it moves only when the spring force leaves the band, and
+    `dir` says which edge moved last; deformation_targets put the spring at either edge."""
+    from firmware.measurement import Measurement
+
+    data = load(path)
+    cal = Cal(data["cal"])
+    h = cal.friction[0]
+    m = Measurement(cal)
+    seen = []
+    for spring, expect in ((0, 0), (5000, 5000 - h), (4900, 5000 - h), (4000, 4000 + h), (4500, 4000 + h),
+                           (-3000, -3000 + h), (-2800, -3000 + h), (-2000, -2000 - h)):
+        i = 0
+        while i < 400:  # the low-pass settles within a few tens of steps
+            out = m._load_force(spring)
+            i += 1
+        assert abs(out - expect) <= 2, (spring, out, expect)
+        seen.append([out, m.dir])
+    assert [d for _, d in seen] == [0, -1, -1, 1, 1, 1, 1, -1], seen
+    targets = array("i", [0, 0, 0])
+    m.deformation_targets(-5000, targets)
+    assert targets[2] < targets[1] < targets[0], list(targets)  # s = +1 works from the lower edge
+    assert targets[1] == m.deformation_for(-5000)
+    assert targets[2] == m.deformation_for(-5000 - h) and targets[0] == m.deformation_for(-5000 + h)
+    return {"seen": seen, "targets": list(targets)}
 
 
 def case_slew(path):

@@ -106,7 +106,10 @@ def test_step_intermediates_stay_within_31_bits(instrumented, tmp_path):
 
     import boards.sim.machine as sim
 
+    from firmware.calibration import FRICTION_MAX_MN
+
     cal = fake_hardware.model_calibration()
+    cal["friction"] = [FRICTION_MAX_MN]  # the largest block friction a file may declare
     path = tmp_path / "cal.json"
     path.write_text(json.dumps({"cal": cal}))
     PEAK.update(value=0, where=None, on=True)

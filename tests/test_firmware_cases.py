@@ -82,6 +82,11 @@ def test_closed_loop_refused_without_calibration(data_path):
     assert here == there
 
 
+def test_load_force_is_a_play_operator_of_the_block_friction(data_path):
+    here, there = both("case_load_force_play(PATH)", data_path)
+    assert here == there
+
+
 def test_slew_limit(data_path):
     here, there = both("case_slew(PATH)", data_path)
     assert here == there

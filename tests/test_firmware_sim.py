@@ -2,6 +2,7 @@
 
 import json
 
+import numpy as np
 import pytest
 
 import fake_hardware
@@ -48,6 +49,7 @@ def _write_calibration(path, cal):
         body[name] = {"kind": cal[name][0], "fixed": cal[name][1]}
     for name in ("df", "force", "force_inverse"):
         body[name] = {"kind": "poly", "fixed": cal[name]}
+    body["friction"] = {"kind": "friction", "fixed": cal["friction"]}
     payload = json.dumps(body, ensure_ascii=True)
     doc = {"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload), "payload": payload}
     path.write_text(json.dumps(doc))
@@ -81,6 +83,40 @@ def test_force_mode_holds_gauge_targets_on_sim(tmp_path, cal_data):
         # between the two pots' tables and the Df fit, x 12.4 mN/um): 1 N, the paper's worst.
         assert out["est_err_mN"] <= 200, out
         assert out["true_err_mN"] <= 1000, out
+
+
+def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_path, cal_data):
+    """The force identification of the guided step (open-loop duty steps against a gauge on each
+    side, F = F0(d) + h s fitted by host/guided/force_calibration.py), then force steps of
+    5-10-15-10-5 N each way: the load's true force and the firmware's estimate both within 2 %
+    of the target, the project's target (the paper: up to 7.0 % and 5.6 %). Without the friction
+    term the same data leave the 5 N steps several % off, so this could fail."""
+    from host.fixed_export import export_poly
+    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N, fit_force
+
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps({"cal": cal_data}))
+    points = []
+    for side in ("high", "low"):
+        for d_um, f_mN, loading in sim_cases.case_force_points_sim(str(path), side, [800, 1600, 2400, 3200, 4000, 4800]):
+            if abs(f_mN) > 300:
+                s = (1 if loading else -1) * (1 if side == "high" else -1)
+                points.append((d_um / 1000.0, f_mN / 1000.0, s))
+    d, f, s = (np.array(c) for c in zip(*points))
+    fit = fit_force(d, f, s, "auto")
+    plain = fit_force(d, f, s, fit.order_f, friction=False)
+    assert 0.15 < fit.friction_n < 0.35 and fit.rms_n < plain.rms_n / 3, (fit, plain)
+    cal = dict(cal_data, friction=[int(round(fit.friction_n * 1000))])
+    cal["force"] = list(export_poly(fit.coeffs_f, D_RANGE_MM[0], D_RANGE_MM[1], 1000, 1000))
+    cal["force_inverse"] = list(export_poly(fit.coeffs_d, F_RANGE_N[0], F_RANGE_N[1], 1000, 1000))
+    path.write_text(json.dumps({"cal": cal}))
+    for side, sign in (("high", -1), ("low", 1)):
+        call = "case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * t for t in (5000, 10000, 15000, 10000, 5000)])
+        here = eval("sim_cases." + call)
+        assert here == on_micropython(call)
+        for target, est, load in here:
+            assert abs(load - target) <= 0.02 * abs(target), (side, here)
+            assert abs(est - load) <= 0.02 * abs(load), (side, here)
 
 
 @pytest.mark.parametrize("pot", ["pot1", "pot2"])

@@ -124,6 +124,98 @@ def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
     return out
 
 
+def _run(app, ticks):
+    """Advance the simulated board `ticks` control periods, the host heard at each."""
+    import boards.sim.machine as sim
+
+    k = 0
+    while k < ticks:
+        sim.run_ticks(1)
+        app.heartbeat()
+        k += 1
+
+
+def _settle_then_mean(app, world, settle_ticks, hold_ticks):
+    """Run, then average the firmware's force estimate and the load's true force (mN)."""
+    import boards.sim.machine as sim
+
+    k = 0
+    est = 0
+    load = 0.0
+    while k < settle_ticks + hold_ticks:
+        sim.run_ticks(1)
+        app.heartbeat()
+        if k >= settle_ticks:
+            est += app.ctrl.meas.force
+            load -= world.external_force_n * 1000.0  # the actuator's force is what the load resists
+        k += 1
+    return est // hold_ticks, int(load / hold_ticks)
+
+
+def case_force_points_sim(path, side, levels, anchor=45000):
+    """Force identification as the guided step does it, on the simulated actuator: open-loop duty
+    steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    sign = -1 if side == "high" else 1
+    app.set_mode("position")
+    app.set_target(anchor - sign * 1500)  # slack side of the anchor
+    _run(app, 1500)
+    world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
+    app.set_mode("open_loop")
+    rows = []
+    seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
+    for duty, loading in seq:
+        app.set_target(sign * duty)
+        app.heartbeat()
+        k = 0
+        defl = 0
+        while k < 800:
+            sim.run_ticks(1)
+            app.heartbeat()
+            if k >= 500:
+                defl += app.ctrl.meas.defl
+            k += 1
+        rows.append([defl // 300, int(-world.external_force_n * 1000.0), loading])
+    app.shutdown()
+    return rows
+
+
+def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500):
+    """Force steps against a gauge on `side` from a slack fibre: [target, estimate, load] mN each."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App("boards/sim.json", None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    sign = -1 if side == "high" else 1
+    app.set_mode("position")
+    app.set_target(anchor - sign * 200)
+    _run(app, 1500)
+    world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
+    app.set_mode("force")
+    rows = []
+    for t in targets:
+        app.set_target(t)
+        est, load_mN = _settle_then_mean(app, world, settle_ticks, hold_ticks)
+        rows.append([t, est, load_mN])
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "force", st
+    return rows
+
+
 def case_wiper_lift_sim(path, pot):
     """A wiper lift in the physical model (boards/sim inject_fault) while position mode drives
     the motor: the very next timer tick leaves 0 V across the motor and names the pot."""

@@ -28,6 +28,7 @@ def sim_calibration(path, date):
         doc[name] = {"kind": cal[name][0], "fixed": cal[name][1]}
     for name in ("df", "force", "force_inverse"):
         doc[name] = {"kind": "poly", "fixed": cal[name]}
+    doc["friction"] = {"kind": "friction", "fixed": cal["friction"]}
     write_calibration(path, doc)
     return load_calibration(str(path)).crc
 

@@ -14,8 +14,10 @@ Mechanics (one degree of freedom each for the nut and the block):
 - Block: mass on a slider with Coulomb and viscous friction (stick when the net force cannot
   overcome Coulomb friction), hard end stops at the stroke ends.
 - Load: none, a constant force, or a force gauge pulled through a fibre: a spring that acts only
-  in tension, when the block is below the anchor (the gauge sits on the + side, as in SPEC
-  section 4 where pulling the block leftward gives negative actuator forces).
+  in tension. On the "high" side (default) the gauge sits toward 60 mm and the fibre is taut when
+  the block is below the anchor, as in SPEC section 4 where pulling the block leftward gives
+  negative actuator forces; on the "low" side it sits toward 0 mm, taut above the anchor, and the
+  actuator's forces against it are positive.
 Integration: semi-implicit (symplectic) Euler with enough sub-steps per call that omega * h
 stays below `max_omega_dt` for the stiffest spring in play; contacts are position projections.
 Sensors: see potentiometer.py (pots) and the adc_* methods below (ADC model).
@@ -109,11 +111,15 @@ class Actuator:
         self.block_speed_mm_s = 0.0
         self._update_outputs()
 
-    def set_load(self, kind="none", anchor_mm=None, stiffness_n_per_mm=None, force_n=0.0):
-        """External load on the block: "none"; "gauge" (fibre to a force gauge, taut when the block
-        is below anchor_mm); "constant" (force_n on the block, + toward 60 mm)."""
+    def set_load(self, kind="none", anchor_mm=None, stiffness_n_per_mm=None, force_n=0.0, side="high"):
+        """External load on the block: "none"; "gauge" (fibre to a force gauge on `side` "high",
+        taut when the block is below anchor_mm, or "low", taut above it); "constant" (force_n on
+        the block, + toward 60 mm)."""
         if kind not in ("none", "gauge", "constant"):
             raise ValueError("load kind must be none, gauge or constant")
+        if side not in ("high", "low"):
+            raise ValueError("gauge side must be high or low")
+        self.gauge_side = 1 if side == "high" else -1
         g = self.gauge
         self.load_kind = kind
         self.anchor_mm = float(g["anchor_mm"] if anchor_mm is None else anchor_mm)
@@ -241,8 +247,9 @@ class Actuator:
 
     def _external(self, x2):
         if self.load_kind == "gauge":
-            if x2 < self.anchor_mm:
-                return self.k_gauge * (self.anchor_mm - x2)
+            stretch = (self.anchor_mm - x2) * self.gauge_side
+            if stretch > 0:
+                return self.k_gauge * stretch * self.gauge_side
             return 0.0
         if self.load_kind == "constant":
             return self.load_force_n
@@ -255,7 +262,7 @@ class Actuator:
         self.external_force_n = self._external(self.block_mm)
         omega = self.nut_speed_mm_s / 1000.0 * self.G
         self.motor_current_a = (self.volts - self.ke * omega) / self.R
-        self.gauge_tension_n = self.external_force_n if self.load_kind == "gauge" else 0.0
+        self.gauge_tension_n = self.external_force_n * self.gauge_side if self.load_kind == "gauge" else 0.0
         drift = self.gauge_drift_rate * self.time_s
         if drift > self.gauge_drift_max:
             drift = self.gauge_drift_max
