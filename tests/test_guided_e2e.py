@@ -33,9 +33,11 @@ def test_every_step_is_accepted_written_and_verified(full_run):
     out, accepted, said = full_run
     assert list(accepted) == ["pots", "assembly", "force"]
     doc = read_calibration(out)  # CRC and every section checked by the firmware's own parser
-    for name in ("pot1", "pot2", "df", "force", "force_inverse"):
+    for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction"):
         assert doc[name] and doc[name]["fixed"], name
-    assert doc["pot1"]["model"] == "bcm" and doc["pot1"]["order"] == 3
+    for pot in ("pot1", "pot2"):  # --model auto: the cheapest firmware curve near the noise floor
+        assert doc[pot]["model"] in ("bcm", "pwl") and doc[pot]["fit"]["rms"] < 0.05, doc[pot]["fit"]
+    assert doc["df"]["fit"]["order"] >= 4  # the paper's quartic, or higher by cross-validation
     crcs = [int(m.group(1), 16) for m in map(re.compile(r"firmware runs calibration crc ([0-9a-f]{8})").search, said) if m]
     assert len(crcs) == 3 and len(set(crcs)) == 3  # one flash per step, each a new file
     assert crcs[-1] == json.loads(out.read_text())["crc32"]
@@ -52,8 +54,13 @@ def test_fits_are_sane(full_run):
     df = accepted["assembly"].data["stats"]
     assert df["peak_before_mm"] > 3.0  # the simulated assembly error is ~4.6 mm at the ends
     assert df["peak_after_mm"] < df["peak_before_mm"] / 5
-    cf = accepted["force"].data["coeffs_f"]
+    force = accepted["force"].data
+    cf = force["coeffs_f"]
     assert 10.0 < cf[-2] < 15.0  # stiffness near 12.4 N/mm
+    assert force["sides"] == ("high", "low") and force["d_mm"].min() < -0.5 < 0.5 < force["d_mm"].max()
+    # the block's friction (0.3 N Coulomb in the model) is identified, and taking it out of the
+    # fit shrinks the residual several-fold
+    assert 0.1 < force["friction_n"] < 0.4 and force["rms_n"] < force["rms_plain_n"] / 2, force
 
 
 def test_closed_loop_error_is_smaller_after_calibration(full_run, tmp_path):

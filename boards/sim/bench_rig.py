@@ -5,7 +5,8 @@ force gauge; the firmware's protocol knows nothing of it. On the virtual board t
 same facts to `rig.json` in the board's filesystem root (the current directory of the firmware)
 and `poll(world)`, called from `machine.idle()` outside the control step, applies them:
 
-    {"reference": "pot1" | "pot2", "load": {"kind": "none" | "gauge", "anchor_mm": 45.0},
+    {"reference": "pot1" | "pot2",
+     "load": {"kind": "none" | "gauge", "anchor_mm": 45.0, "side": "high" | "low"},
      "fault": null | {"channel": "pot1", "kind": "wiper_lift", "rail": "high"}}
 
 While the gauge is hooked, the rig also plays the gauge's display: `gauge.json` holds its reading
@@ -59,7 +60,7 @@ def apply(world, rig):
     load = rig.get("load")
     if load is not None:
         kind = load.get("kind", "none")
-        world.set_load(kind, anchor_mm=load.get("anchor_mm"))
+        world.set_load(kind, anchor_mm=load.get("anchor_mm"), side=load.get("side", "high"))
         _gauge_on = kind == "gauge"
     if "fault" in rig:
         world.clear_faults()

@@ -27,11 +27,8 @@ def add_parser(subparsers):
     p.add_argument("--ref-zero-mm", type=float, default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over its full scale, mm (real boards)")
     p.add_argument("--manual-points", type=int, default=12, help="--reference manual: stops per direction (default 12)")
-    p.add_argument("--model", default="bcm", help="pot model: bcm (default), pwl, auto, ... (see host fit --help)")
-    p.add_argument("--order", type=int, default=None, help="pot model order (default: bcm 3, pwl 5)")
+    add_method_arguments(p)
     p.add_argument("--duty", type=int, default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
-    p.add_argument("--df-order", default="4", help="Df polynomial order, or auto (cross-validation); default 4")
-    p.add_argument("--force-order", default="2", help="F0(d) and d(F0) order, or auto; default 2 (quadratics)")
     p.add_argument("--rounds", type=int, default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
     p.add_argument("--levels", type=int, default=8, help="force: duty steps per loading (default 8)")
     p.add_argument("--max-duty", type=int, default=5000, help="force: largest open-loop duty (default 5000: ~17 N)")
@@ -40,28 +37,67 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
-def options_from(args):
-    out = Path(args.out)
-    plots = Path(args.plots) if args.plots else (out.parent if str(out.parent) else Path("."))
-    plots.mkdir(parents=True, exist_ok=True)
+PAPER_METHOD = {"model": "bcm", "order": 3, "df_order": "4", "force_order": "2", "gauge_sides": "high", "no_friction": True}
 
-    def order(text, name):
+
+def add_method_arguments(p):
+    """The calibration method's options, shared with `host experiment`."""
+    p.add_argument("--paper-method", action="store_true",
+                   help="the paper's method: BCM-3 pots, a quartic Df, quadratic force fits without friction, gauge "
+                   "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
+                   "--gauge-sides high --no-friction)")
+    p.add_argument("--model", default="auto", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
+                   "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
+                   "(see host fit --help)")
+    p.add_argument("--order", type=int, default=None, help="pot model order (default: bcm 3, pwl 5)")
+    p.add_argument("--budget", type=int, default=32, help="--model auto: most numbers a pot curve may store "
+                   "(default 32: a table of up to 17 knots)")
+    p.add_argument("--df-order", default="auto", help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
+                   "cross-validation finds a higher order more than 5 %% better")
+    p.add_argument("--force-order", default="auto", help="F0(d) and d(F0) order 1-5, or auto (default, cross-validation); "
+                   "the paper fits quadratics (2)")
+    p.add_argument("--gauge-sides", choices=("high", "low", "both"), default="both",
+                   help="force: gauge on the 60 mm side (high: the block pulls toward 0 mm, negative forces, the paper's "
+                   "rig), the 0 mm side (low: positive forces), or one after the other (both, default)")
+    p.add_argument("--no-friction", action="store_true", help="force: fit F0(d) without the output block's friction "
+                   "term (the paper's model); by default the friction is identified and the firmware compensates it")
+
+
+def method_options(args):
+    """Options fields of the method arguments (PAPER_METHOD applied when --paper-method)."""
+    values = {k: getattr(args, k) for k in PAPER_METHOD}
+    if args.paper_method:
+        values.update(PAPER_METHOD)
+
+    def order(text, name, top):
         if text == "auto":
             return "auto"
         try:
             value = int(text)
         except ValueError:
             raise UserError("%s must be an integer or auto, not %r" % (name, text)) from None
-        if not 1 <= value <= 8:
-            raise UserError("%s must be 1..8" % name)
+        if not 1 <= value <= top:
+            raise UserError("%s must be 1..%d or auto" % (name, top))
         return value
+
+    if args.budget < 2:
+        raise UserError("--budget must be at least 2")
+    return {"model": values["model"], "order": values["order"], "budget": args.budget,
+            "df_order": order(str(values["df_order"]), "--df-order", 12),
+            "force_order": order(str(values["force_order"]), "--force-order", 5),
+            "gauge_sides": values["gauge_sides"], "friction": not values["no_friction"]}
+
+
+def options_from(args):
+    out = Path(args.out)
+    plots = Path(args.plots) if args.plots else (out.parent if str(out.parent) else Path("."))
+    plots.mkdir(parents=True, exist_ok=True)
 
     if not 100 <= args.duty <= 6000:
         raise UserError("--duty must be within 100..6000")
     return Options(out=out, out_dir=plots, reference=args.reference, manual_points=args.manual_points,
-                   model=args.model, order=args.order, duty=args.duty, df_order=order(args.df_order, "--df-order"),
-                   force_order=order(args.force_order, "--force-order"), anchor_mm=args.anchor_mm, rounds=max(1, args.rounds),
-                   levels=max(3, args.levels), max_duty=args.max_duty, flash=not args.no_flash)
+                   duty=args.duty, anchor_mm=args.anchor_mm, rounds=max(1, args.rounds),
+                   levels=max(3, args.levels), max_duty=args.max_duty, flash=not args.no_flash, **method_options(args))
 
 
 def calibrate(args, say=print, ask=None):

@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+from host.commands.calibrate import add_method_arguments, method_options
 from host.errors import UserError
 
 
@@ -18,8 +19,7 @@ def add_parser(subparsers):
     p.add_argument("--out", required=True, metavar="DIR", help="report directory (report.md, PNGs, calibration files)")
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports)")
     p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")
-    p.add_argument("--model", default="bcm", help="pot model for the calibration (default bcm, the paper's)")
-    p.add_argument("--order", type=int, default=None, help="pot model order (default 3 for bcm)")
+    add_method_arguments(p)
     p.add_argument("--ref-zero-mm", type=float, default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over full scale, mm (real boards)")
     p.add_argument("--rounds", type=int, default=2, help="force identification rounds (paper: 5; default 2)")
@@ -39,8 +39,7 @@ def run(args):
     except OSError as exc:
         raise UserError("cannot create %s: %s" % (out_dir, exc.strerror)) from None
     prompter = Prompter(yes=args.yes or args.port == "sim")
-    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, model=args.model, order=args.order,
-                   rounds=max(1, args.rounds))
+    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), **method_options(args))
     with Session(args.port, args.board, None, say=prompter.say) as session:
         opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
         rig = Rig(prompter, session.root)

@@ -25,9 +25,12 @@ class Options:
     manual_points: int = 12
     model: str = "bcm"
     order: int = None
+    budget: int = None  # --model auto: most numbers a pot curve may store
     duty: int = 1500
-    df_order: object = 4
-    force_order: object = 2
+    df_order: object = "auto"
+    force_order: object = "auto"
+    gauge_sides: str = "both"  # "high" (the paper's rig), "low" or "both"
+    friction: bool = True
     anchor_mm: float = 45.0
     rounds: int = 2
     levels: int = 8

@@ -1,63 +1,173 @@
-"""Calibration 3 (SPEC section 4): force from spring deformation, F0(d) and its inverse d(F0).
+"""Calibration 3 (SPEC section 4): force from spring deformation, F0(d), its inverse, and the
+output block's friction.
 
-The block pulls the force gauge through a fibre. Each round loads and unloads in open-loop duty
+The block pulls a force gauge through a fibre. Each round loads and unloads in open-loop duty
 steps (the motor stalls against the fibre, so the duty sets the force without knowing the fibre's
 stiffness); at each step, once still, the firmware's deformation d = D1* - D2 (Df-corrected, so
 the assembly step must be done) and the gauge reading are averaged. The gauge is tared with the
-fibre slack first. F0 = -gauge (pulling the block toward 0 mm is a negative actuator force).
-Both directions are fitted from the same points (quadratics by default, `auto` = order by
-cross-validation), and the loading/unloading hysteresis is reported.
+fibre slack first. The paper pulls the block toward 0 mm only (gauge on the 60 mm side, negative
+actuator forces); by default the gauge is then moved to the 0 mm side and the rounds repeated, so
+that F0(d) is measured for both signs of force.
+
+Why a friction term: the block slides on its slider between the spring and the fibre, so the
+gauge reads the spring force minus the block's Coulomb friction h in the direction the block
+slid: F_gauge = F0(d) + h * s, with s = +1 after the force fell (the block slid toward 0 mm) and
+-1 after it rose. Fitted without it, loading and unloading disagree by ~2h and the fit carries
++-h of error (rms 0.22 N on the simulated actuator against 0.02 N with it). F0 and h are fitted
+together by linear least squares (h is one more column); d(F0) is fitted to the spring force
+F_gauge - h * s. The firmware turns h into a play operator on F0(d) (firmware/measurement.py).
+Orders: `auto` (the default) picks the lowest within 5 % of the best 5-fold cross-validated
+error; an integer fixes it (the paper's quadratics: 2).
 """
+
+import time
+from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.calibration_file import poly_section
+from host.calibration_file import friction_section, poly_section
 from host.errors import UserError
 from host.guided import acquire
-from host.guided.assembly_calibration import choose_order
 from host.guided.outcome import StepOutcome
 from host.guided.prompts import end_progress, progress_line
 
 D_RANGE_MM = (-2.0, 2.0)  # the cavity: |d| never exceeds 2 mm
 F_RANGE_N = (-25.0, 25.0)
+MAX_ORDER = 5
+TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about the spring
+SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
 
 def _gauge(rig, reads):
     return float(np.mean([rig.gauge_reading_n() for _ in range(reads)]))
 
 
-def force_points(session, rig, prompter, opts):
-    """(d_mm, force_N, loading) arrays from `opts.rounds` loading/unloading rounds."""
-    client = session.client
-    anchor = opts.anchor_mm
-    prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % (anchor + 1.5))
-    ok, _ = acquire.hold(client, "position", int((anchor + 1.5) * 1000), "d2_um", 300, timeout_s=10)
+def slack_position_mm(anchor_mm, side):
+    """Where the block waits while the fibre is hooked: 1.5 mm on the slack side of the anchor."""
+    return anchor_mm + 1.5 if side == "high" else anchor_mm - 1.5
+
+
+def _move_slack(client, start):
+    ok, _ = acquire.hold(client, "position", int(start * 1000), "d2_um", 300, timeout_s=10)
     client.call("stop")
     if not ok:
         status = client.call("status")
-        raise UserError("could not move the block to %.1f mm to hook the fibre slack (mode %s, faults %s)" % (
-            anchor + 1.5, status.get("mode"), ", ".join(status.get("faults") or []) or "none"))
-    rig.hook_gauge(anchor)
-    prompter.say("  taring the gauge")
-    tare = _gauge(rig, 3 if rig.virtual else 1)  # a person reads the tare once
+        raise UserError("could not move the block to %.1f mm, where the fibre hangs slack (mode %s, faults %s)" % (
+            start, status.get("mode"), ", ".join(status.get("faults") or []) or "none"))
+
+
+def force_points(session, rig, prompter, opts, side="high"):
+    """(d_mm, force_N, s, loading, tares) from `opts.rounds` loading/unloading rounds against a
+    gauge on `side`. force_N is the actuator's force (negative toward 0 mm); s is the friction
+    direction of each point (+1 after the force fell, -1 after it rose).
+
+    The gauge's zero drifts (the paper notes it; 0.3 N/min would be 0.1 N over a side's rounds,
+    2 % of 5 N), so the fibre is slackened and the gauge tared before the first round and after
+    every round, and each reading is taken against the tare interpolated to its time."""
+    client = session.client
+    anchor = opts.anchor_mm
+    sign = SIDES[side]
+    start = slack_position_mm(anchor, side)
+    if rig.state["load"].get("kind") == "gauge":  # the other side's gauge would hold the block
+        rig.no_load()
+    prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % start)
+    _move_slack(client, start)
+    rig.hook_gauge(anchor, side)
+    reads = 3 if rig.virtual else 1  # a person reads each tare once
+
+    tare_t, tares = [], []
+
+    def tare():
+        tares.append(_gauge(rig, reads))
+        tare_t.append(time.monotonic())
+
+    prompter.say("  taring the gauge (fibre slack)")
+    tare()
     levels = np.linspace(0, opts.max_duty, opts.levels + 1)[1:]
-    d, f, loading = [], [], []
+    d, g, t, loading = [], [], [], []
     for r in range(opts.rounds):
         for load, seq in ((True, levels), (False, levels[::-1][1:])):
             for duty in seq:
                 client.call("mode", "open_loop")
-                client.call("target", -int(duty))
+                client.call("target", sign * int(duty))
                 acquire.collect(client, opts.settle_s)  # let it come to rest against the fibre
                 rec = acquire.collect(client, 0.3)
                 d.append(acquire.mean(rec, "defl_um") / 1000.0)
-                f.append(-(_gauge(rig, 1) - tare))
+                g.append(_gauge(rig, 1))
+                t.append(time.monotonic())
                 loading.append(load)
-                progress_line("  round %d/%d %s duty %5d: d %+.3f mm, gauge %+.2f N" % (
-                    r + 1, opts.rounds, "loading  " if load else "unloading", -duty, d[-1], -f[-1]))
+                progress_line("  %s side, round %d/%d %s duty %+5d: d %+.3f mm, gauge %.2f N" % (
+                    side, r + 1, opts.rounds, "loading  " if load else "unloading", sign * duty, d[-1], g[-1]))
         client.call("stop")
+        _move_slack(client, start)
+        tare()
     end_progress()
     client.call("stop")
-    return np.array(d), np.array(f), np.array(loading), tare
+    loading = np.array(loading)
+    # the gauge shows tension; the force's sign is the side's
+    f = sign * (np.array(g) - np.interp(t, tare_t, tares))
+    # Loading against the high-side gauge makes the force fall (more negative): the block slides
+    # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
+    s = np.where(loading, 1.0, -1.0) * (1.0 if side == "high" else -1.0)
+    return np.array(d), f, s, loading, tares
+
+
+@dataclass
+class ForceFit:
+    coeffs_f: np.ndarray  # F0(d), N of mm, numpy.polyval order
+    coeffs_d: np.ndarray  # d(F0), mm of N (of the spring force)
+    friction_n: float  # h; 0 when fitted without friction
+    rms_n: float  # of F_gauge - (F0(d) + h s)
+    max_n: float
+    rms_d_mm: float  # of d - d(F_gauge - h s)
+    order_f: int
+    order_d: int
+    scores: dict = field(default_factory=dict)  # order -> cross-validated rms (N)
+
+
+def _design(d, s, order, friction):
+    a = np.vander(d, order + 1)
+    return np.column_stack([a, s]) if friction else a
+
+
+def _solve(d, f, s, order, friction):
+    sol = np.linalg.lstsq(_design(d, s, order, friction), f, rcond=None)[0]
+    return (sol[:-1], float(sol[-1])) if friction else (sol, 0.0)
+
+
+def cv_rms(d, f, s, order, friction, folds=5):
+    """Root mean square hold-out error of the F0 fit (interleaved folds)."""
+    idx = np.arange(len(d))
+    err = []
+    for k in range(folds):
+        test = idx % folds == k
+        c, h = _solve(d[~test], f[~test], s[~test], order, friction)
+        err.append(f[test] - np.polyval(c, d[test]) - h * s[test])
+    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+
+def fit_force(d_mm, force_n, s, order="auto", friction=True):
+    """F_gauge = F0(d) + h s and d(F0 = F_gauge - h s) by least squares: a ForceFit."""
+    d = np.asarray(d_mm, dtype=float)
+    f = np.asarray(force_n, dtype=float)
+    s = np.asarray(s, dtype=float)
+    top = min(MAX_ORDER, len(d) // 3)
+    if top < 1:
+        raise UserError("force: too few points with the fibre taut (%d)" % len(d))
+    scores = {n: cv_rms(d, f, s, n, friction) for n in range(1, top + 1)}
+    if order == "auto":
+        best = min(scores.values())
+        order = min(n for n, v in scores.items() if v <= 1.05 * best)
+    order = int(order)
+    cf, h = _solve(d, f, s, order, friction)
+    if h < 0:  # friction cannot push the way the block slides: a fit artefact, drop the term
+        cf, h = _solve(d, f, s, order, False)
+    spring = f - h * s
+    cd = np.polyfit(spring, d, order)
+    resid = f - np.polyval(cf, d) - h * s
+    rd = d - np.polyval(cd, spring)
+    return ForceFit(cf, cd, h, float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid))),
+                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
 
 
 def hysteresis_n(d, f, loading, order):
@@ -72,64 +182,87 @@ def hysteresis_n(d, f, loading, order):
     return float(np.max(np.abs(np.polyval(cl, grid) - np.polyval(cu, grid))))
 
 
+def _poly_text(c, var):
+    n = len(c) - 1
+    return " + ".join("%.4g %s^%d" % (v, var, n - i) for i, v in enumerate(c))
+
+
 def calibrate_force(session, rig, prompter, opts, calibration_path):
     from host.calibration_file import read_calibration
 
     doc = read_calibration(calibration_path) if calibration_path.exists() else {}
     if not doc.get("df"):
         raise UserError("the force step needs the assembly (Df) calibration first: host calibrate assembly")
-    prompter.say("[force] %d loading/unloading rounds against the force gauge" % opts.rounds)
-    d, f, loading, tare = force_points(session, rig, prompter, opts)
-    taut = np.abs(f) > 0.3  # slack-fibre points say nothing about the spring
+    sides = ("high", "low") if opts.gauge_sides == "both" else (opts.gauge_sides,)
+    prompter.say("[force] %d loading/unloading rounds against the force gauge, gauge on the %s side%s" % (
+        opts.rounds, " then the ".join("60 mm" if x == "high" else "0 mm" for x in sides), "s" if len(sides) > 1 else ""))
+    parts = [force_points(session, rig, prompter, opts, side) for side in sides]
+    rig.no_load()
+    d, f, s, loading = (np.concatenate([p[i] for p in parts]) for i in range(4))
+    tares = [t for p in parts for t in p[4]]
+    taut = np.abs(f) > TAUT_N
     if np.count_nonzero(taut) < 6:
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
-    dt, ft, lt = d[taut], f[taut], loading[taut]
-    order_f, scores_f = choose_order(dt, ft, opts.force_order) if opts.force_order == "auto" else (int(opts.force_order), {})
-    order_d, _ = choose_order(ft, dt, opts.force_order) if opts.force_order == "auto" else (int(opts.force_order), {})
-    cf = np.polyfit(dt, ft, order_f)
-    cd = np.polyfit(ft, dt, order_d)
-    rf = ft - np.polyval(cf, dt)
-    rd = dt - np.polyval(cd, ft)
-    hyst = hysteresis_n(dt, ft, lt, order_f)
+    dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
+    fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
+    plain = fit_force(dt, ft, st, fit.order_f, friction=False)  # what the paper's fit leaves
+    hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
+               hysteresis_n(dt[ft > 0], ft[ft > 0], lt[ft > 0], fit.order_f) if np.any(ft > 0) else 0.0)
     lines = [
-        "force: %d points (%d taut), gauge tare %.2f N, d %.3f..%.3f mm, F0 %.2f..%.2f N" % (
-            len(d), len(dt), tare, dt.min(), dt.max(), ft.min(), ft.max()),
-        "force: F0(d) = " + " + ".join("%.4g d^%d" % (c, order_f - i) for i, c in enumerate(cf)) +
-        "  (N, mm; rms %.3f N, max %.3f N)" % (np.sqrt(np.mean(rf**2)), np.max(np.abs(rf))),
-        "force: d(F0) = " + " + ".join("%.4g F^%d" % (c, order_d - i) for i, c in enumerate(cd)) +
-        "  (mm, N; rms %.1f um, max %.1f um)" % (1000 * np.sqrt(np.mean(rd**2)), 1000 * np.max(np.abs(rd))),
+        "force: %d points (%d taut), gauge %s, tares %s N (interpolated in time: the zero drifts), d %.3f..%.3f mm, "
+        "F0 %.2f..%.2f N" % (len(d), len(dt), " and ".join(sides), ", ".join("%.2f" % t for t in tares), dt.min(), dt.max(),
+                             ft.min(), ft.max()),
+        "force: F0(d) = %s  (N, mm)" % _poly_text(fit.coeffs_f, "d"),
+        "force: block friction h = %.3f N; fit rms %.3f N, max %.3f N (without the friction term: rms %.3f N)" % (
+            fit.friction_n, fit.rms_n, fit.max_n, plain.rms_n) if opts.friction else
+        "force: no friction term (--no-friction); fit rms %.3f N, max %.3f N" % (fit.rms_n, fit.max_n),
+        "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (_poly_text(fit.coeffs_d, "F"), 1000 * fit.rms_d_mm),
         "force: loading/unloading hysteresis %.3f N (largest gap between the two fits)" % hyst,
+        "force: cross-validated rms by order: " + ", ".join("%d: %.3f N" % kv for kv in fit.scores.items()),
     ]
-    if scores_f:
-        lines.append("force: cross-validated rms by order: " + ", ".join("%d: %.3f N" % kv for kv in scores_f.items()))
-    stats_f = {"order": order_f, "rms_n": float(np.sqrt(np.mean(rf**2))), "hysteresis_n": hyst, "tare_n": tare}
-    stats_d = {"order": order_d, "rms_mm": float(np.sqrt(np.mean(rd**2)))}
+    stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
+               "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
+    stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
     sections = {
-        "force": poly_section(cf, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
-        "force_inverse": poly_section(cd, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
+        "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
+        "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
+        # always written, so that a --no-friction run also replaces an older friction section
+        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt))}),
     }
     png = opts.out_dir / "calibration-force.png"
-    plot_force(png, d, f, loading, cf)
-    data = {"d_mm": d, "force_n": f, "loading": loading, "coeffs_f": cf, "coeffs_d": cd, "hysteresis_n": hyst}
+    plot_force(png, d, f, s, fit)
+    data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d,
+            "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,
+            "sides": sides}
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)
 
 
-def plot_force(path, d, f, loading, cf):
+def plot_force(path, d, f, s, fit):
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    ax.plot(d[loading], f[loading], "v", color="tab:red", ms=4, label="loading")
-    ax.plot(d[~loading], f[~loading], "^", color="tab:blue", ms=4, label="unloading")
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    down = s > 0
+    ax.plot(d[down], f[down], "v", color="tab:red", ms=4, label="force fell (block slid toward 0 mm)")
+    ax.plot(d[~down], f[~down], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
     grid = np.linspace(np.min(d), np.max(d), 200)
-    ax.plot(grid, np.polyval(cf, grid), "k-", lw=1, label="F0(d), order %d" % (len(cf) - 1))
-    ax.set_xlabel("spring deformation d = D1* - D2 (mm)")
-    ax.set_ylabel("actuator force F0 = -gauge (N)")
-    ax.set_title("Force identification (paper eqs. 8-9)")
+    spring = np.polyval(fit.coeffs_f, grid)
+    ax.plot(grid, spring, "k-", lw=1, label="F0(d), order %d (spring)" % fit.order_f)
+    if fit.friction_n > 0:
+        ax.fill_between(grid, spring - fit.friction_n, spring + fit.friction_n, color="0.8", alpha=0.6,
+                        label="friction band +-%.2f N" % fit.friction_n)
+    ax.set_ylabel("actuator force = gauge (N)")
+    ax.set_title("Force identification (paper eqs. 8-9, with the block's friction)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
+    resid = f - np.polyval(fit.coeffs_f, d) - fit.friction_n * s
+    ax2.plot(d, resid * 1000, ".", color="tab:green", ms=4)
+    ax2.axhline(0, color="0.5", lw=0.6)
+    ax2.set_xlabel("spring deformation d = D1* - D2 (mm)")
+    ax2.set_ylabel("residual (mN)")
+    ax2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)

@@ -3,8 +3,10 @@
 For each pot the rig mounts the reference in parallel with it; the actuator sweeps forward and
 backward at a low open-loop duty while the firmware logs the pot's code and the reference's code
 (`--reference adc`), or the person types dial-gauge readings at stops (`--reference manual`).
-The sweep is checked (host/guided/checks.py), fitted (BCM-3 by default), exported to fixed point
-and returned as the pot1/pot2 sections.
+The sweep is checked (host/guided/checks.py), fitted (by default `auto`: the cheapest curve the
+firmware evaluates, BCM-3 or a free-knot piecewise-linear table, that gets within 10 % of the
+sweep's noise floor, within a budget of stored numbers; `--model bcm --order 3` is the paper's),
+exported to fixed point and returned as the pot1/pot2 sections.
 """
 
 import time
@@ -48,12 +50,12 @@ def manual_sweep(session, rig, pot, points, prompter, say):
     return np.array(raws), np.array(refs), np.array(dirs, dtype=float)
 
 
-def fit_pot(raw, ref, direction, adc_bits, model, order):
+def fit_pot(raw, ref, direction, adc_bits, model, order, budget=None):
     from host.commands.fit import fit_sweep
     from host.sweep import sweep_from_arrays
 
     sweep = sweep_from_arrays(raw, ref, direction, source="pot sweep")
-    fit, floors, reason = fit_sweep(sweep, model=model, order=order)
+    fit, floors, reason = fit_sweep(sweep, model=model, order=order, **({"budget": budget} if budget else {}))
     return sweep, fit, floors, reason
 
 
@@ -85,7 +87,7 @@ def calibrate_pots(session, rig, prompter, opts):
                 prompter.say("  " + c.line())
             if len(raw) < 20:
                 continue
-        sweep, fit, floors, reason = fit_pot(raw, ref, direction, bits, opts.model, opts.order)
+        sweep, fit, floors, reason = fit_pot(raw, ref, direction, bits, opts.model, opts.order, opts.budget)
         png = opts.out_dir / ("calibration-%s.png" % pot)
         plot_fit(png, sweep.x, sweep.y, fit, noise=floors.get("noise_floor"), direction=sweep.direction,
                  title="%s: %s order %d, rms %.1f um, max %.1f um" % (pot, fit.model, fit.order, 1000 * fit.rms, 1000 * fit.max_abs))

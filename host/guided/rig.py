@@ -48,10 +48,14 @@ class Rig:
     def no_load(self):
         self._do("Unhook the force gauge: the output block must run free end to end (no load).", load={"kind": "none"})
 
-    def hook_gauge(self, anchor_mm):
-        self._do("Hook the force gauge to the output block through the fibre, anchored so it goes taut at "
-                 "D2 = %.0f mm (the block pulls it toward 0 mm)." % anchor_mm,
-                 load={"kind": "gauge", "anchor_mm": float(anchor_mm)})
+    def hook_gauge(self, anchor_mm, side="high"):
+        """side "high": the gauge sits toward 60 mm and the block pulls it toward 0 mm (negative
+        actuator forces, the paper's rig); "low": toward 0 mm, the block pushes away from it."""
+        where = ("on the 60 mm side (the block pulls it toward 0 mm)" if side == "high"
+                 else "on the 0 mm side (the block pulls it toward 60 mm)")
+        self._do("Hook the force gauge to the output block through the fibre, %s, anchored so it goes "
+                 "taut at D2 = %.0f mm." % (where, anchor_mm),
+                 load={"kind": "gauge", "anchor_mm": float(anchor_mm), "side": side})
 
     def set_fault(self, fault):
         """Simulated boards only (tests): make a channel misbehave, e.g. {"channel": "pot1"}."""
