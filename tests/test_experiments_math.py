@@ -37,3 +37,59 @@ def test_force_hysteresis_is_the_gap_between_loading_and_unloading():
     f = 12.4 * d + np.where(loading, -0.3, 0.3)  # friction opposes the motion each way
     assert abs(hysteresis_n(d, f, loading, 2) - 0.6) < 1e-6
     assert np.isnan(hysteresis_n(d[:3], f[:3], loading[:3], 2))
+
+
+def _results(after_error_mm, df_binned_mm, force_pct):
+    """A results dict shaped like host.experiments.paper.run_paper's, with chosen figures."""
+    targets = (1, 30, 59)
+    fig7 = {
+        "before": [{"target": float(t), "reference": t - 2.0, "error": 2.0, "d2": float(t), "settled": True} for t in targets],
+        "after": [{"target": float(t), "reference": t - after_error_mm, "error": after_error_mm, "d2": float(t),
+                   "settled": t != 59} for t in targets],
+    }
+    table1 = []
+    for side, sign in (("high", -1.0), ("low", 1.0)):
+        for m, phase in ((5.0, "loading"), (10.0, "loading"), (15.0, "loading"), (10.0, "unloading"), (5.0, "unloading")):
+            target = sign * m
+            measured = target * (1 + force_pct / 100.0)
+            table1.append({"target": target, "measured": measured, "estimate": measured, "side": side, "phase": phase,
+                           "steady_pct": 100.0 * (measured - target) / abs(target), "estimation_pct": 0.0})
+    return {
+        "board": "sim", "simulated": True, "port": "sim", "model": "auto (budget 32 numbers)",
+        "pot_models": {"pot1": "pwl order 12", "pot2": "pwl order 11"},
+        "method": {"df_order": "auto", "force_order": "auto", "gauge_sides": "both", "friction": True, "budget": 32},
+        "calibration": {"pots": ["pot1 fit: pwl"], "assembly": ["Df: order 7"], "force": ["force: h"]},
+        "calibration_plots": ["calibration-pot1.png"],
+        "paper_method_offline": {"pot1": {"rms_mm": 0.075, "max_mm": 0.19}, "pot2": {"rms_mm": 0.095, "max_mm": 0.42},
+                                 "df4_binned_mm": 0.3},
+        "fig3a": [{"model": "bcm", "order": 3, "norm2": 3.9}] + [{"model": "pcm", "order": n, "norm2": 40.0 / n} for n in range(2, 13)],
+        "fig5": {"order": 7, "peak_before_mm": 4.5, "peak_after_mm": 0.15, "peak_after_binned_mm": df_binned_mm,
+                 "rms_after_mm": 0.037, "n_samples": 1964},
+        "force_fit": {"coeffs_f": [0.25, -0.08, 12.6, 0.03], "coeffs_d": [0.0, 0.079, 0.0], "hysteresis_n": 0.53,
+                      "friction_n": 0.21, "rms_n": 0.03, "rms_plain_n": 0.24, "sides": ["high", "low"]},
+        "fig7": fig7,
+        "fig8": [("without Df", {"final": 40.2, "target_n": 5.0}), ("with Df", {"final": 59.4, "target_n": 5.0}),
+                 ("with Df", {"final": 0.6, "target_n": -1.0})],
+        "dead_zone": {"rows": [{"target": -0.2, "measured": -0.1, "estimate": -0.2}], "dead_zone_n": 0.2},
+        "table1": table1,
+        "timings": {"calibration": 100.0, "total": 250.0},
+    }
+
+
+def test_report_renders_every_section_and_judges_each_target(tmp_path):
+    from types import SimpleNamespace
+
+    from host.experiments import report
+
+    opts = SimpleNamespace(rounds=2)
+    text = report.write(tmp_path, _results(0.05, 0.2, 1.0), opts).read_text()
+    for heading in ("## Summary", "## Fig. 3a", "## Fig. 5", "## Fig. 7", "## Fig. 8", "## Force dead zone", "## Table 1"):
+        assert heading in text
+    lines = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ")}
+    assert "<= 0.1 mm: met" in lines["displacement control (Fig. 7), max error 1-59 mm"]
+    assert "NOT met" in lines["Df calibration (Fig. 5)"]  # 0.2 mm of bin means
+    assert "no blocking at +-1 to 10 N: met" in lines["force control 5 N at no load from 30 mm (Fig. 8)"]
+    assert "worst of all 10 steps (both signs, loading and unloading) 1.0 %" in text and "<= 2 %: met" in text
+    assert "| 30 | 28.000 | 2.000 | 29.950 | 0.050 |" in text and "0.050 (not settled)" in text  # 59 mm unsettled
+    worse = report.write(tmp_path, _results(0.5, 0.05, 3.0), opts).read_text()
+    assert "<= 0.1 mm: **NOT met**" in worse and "<= 2 %: **NOT met**" in worse

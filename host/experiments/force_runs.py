@@ -5,14 +5,19 @@
   reaches the target deformation part-way and the block stops ("blocks").
 - dead zone: with the gauge hooked (fibre just slack at the anchor), force targets 0..-5 N in
   0.2 N steps; the dead zone is the largest |target| whose measured |force| is below half of it.
-- steps (Table 1): targets -5, -10, -15 N; steady-state error (gauge vs target) and estimation
-  error (firmware's force estimate vs gauge), in % of the target/measured force.
+- steps (Table 1): targets -5, -10, -15 N and back through -10, -5 N (loading, then unloading)
+  with the gauge on the 60 mm side as in the paper, and +5, +10, +15, +10, +5 N with the gauge on
+  the 0 mm side; steady-state error (gauge vs target) and estimation error (firmware's force
+  estimate vs gauge), in % of the target/measured force.
 """
 
 import numpy as np
 
 from host.guided import acquire
+from host.guided.force_calibration import SIDES
 from host.guided.prompts import end_progress, progress_line
+
+STEPS_N = (5.0, 10.0, 15.0, 10.0, 5.0)  # magnitudes: loading, then unloading
 
 
 def blocking_run(session, rig, target_n, seconds=4.0):
@@ -30,20 +35,23 @@ def blocking_run(session, rig, target_n, seconds=4.0):
     return {"t": t, "d2": d2, "final": final, "target_n": target_n}
 
 
-def _hook_slack(session, rig, anchor_mm):
+def _hook_slack(session, rig, anchor_mm, side="high"):
     client = session.client
-    acquire.hold(client, "position", int((anchor_mm + 0.2) * 1000), "d2_um", 50, timeout_s=8.0, measure_s=0.1)
+    slack = anchor_mm + 0.2 if side == "high" else anchor_mm - 0.2
+    if rig.state["load"].get("kind") == "gauge":
+        rig.no_load()
+    acquire.hold(client, "position", int(slack * 1000), "d2_um", 50, timeout_s=8.0, measure_s=0.1)
     client.call("stop")
-    rig.hook_gauge(anchor_mm)
+    rig.hook_gauge(anchor_mm, side)
     return float(np.mean([rig.gauge_reading_n() for _ in range(3 if rig.virtual else 1)]))
 
 
-def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4):
+def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4, side="high"):
     client = session.client
     client.call("target", int(round(target_n * 1000)))
     acquire.collect(client, settle_s)
     rec = acquire.collect(client, measure_s)
-    gauge = -(rig.gauge_reading_n() - tare)  # actuator force = -gauge tension
+    gauge = SIDES[side] * (rig.gauge_reading_n() - tare)  # the gauge shows tension; the side gives the sign
     return gauge, acquire.mean(rec, "force_mN") / 1000.0
 
 
@@ -63,19 +71,24 @@ def dead_zone(session, rig, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
     return rows, dz
 
 
-def force_steps(session, rig, anchor_mm, targets=(-5.0, -10.0, -15.0), settle_s=1.5):
-    tare = _hook_slack(session, rig, anchor_mm)
+def force_steps(session, rig, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5):
+    """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it)."""
+    tare = _hook_slack(session, rig, anchor_mm, side)
     client = session.client
     acquire.reset(client)
     client.call("mode", "force")
     rows = []
-    for target in targets:
-        measured, estimate = _force_hold(session, rig, target, tare, settle_s, 0.5)
+    peak = 0.0
+    for magnitude in magnitudes:
+        target = SIDES[side] * magnitude
+        measured, estimate = _force_hold(session, rig, target, tare, settle_s, 0.5, side)
         rows.append({
-            "target": target, "measured": measured, "estimate": estimate,
+            "target": target, "measured": measured, "estimate": estimate, "side": side,
+            "phase": "loading" if magnitude > peak else "unloading",
             "steady_pct": 100.0 * (measured - target) / abs(target),
             "estimation_pct": 100.0 * (estimate - measured) / abs(measured) if measured else float("nan"),
         })
+        peak = max(peak, magnitude)
         progress_line("  step %+.0f N: gauge %+.2f N, estimate %+.2f N" % (target, measured, estimate))
     end_progress()
     client.call("stop")

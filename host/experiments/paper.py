@@ -24,6 +24,34 @@ def _save_sweep(path, data):
             w.writerow([int(x), "%.5f" % y, int(d)])
 
 
+def save_results(path, results):
+    """The run's measured results as JSON (numpy values as plain numbers)."""
+    import json
+
+    def plain(v):
+        if hasattr(v, "tolist"):
+            return v.tolist()
+        raise TypeError("not JSON: %r" % (v,))
+
+    Path(path).write_text(json.dumps(results, default=plain, indent=1) + "\n")
+
+
+def paper_method_offline(pots, assembly):
+    """The paper's fits on this run's own sweeps, for comparison: BCM-3 per pot, a quartic Df.
+    (The Df data were converted with this run's pot curves; the closed-loop figures of the
+    paper's method need a run of their own: --paper-method.)"""
+    from host.guided.assembly_calibration import binned_peak, fit_df
+    from host.models import fit_model
+
+    out = {}
+    for pot in ("pot1", "pot2"):
+        fit = fit_model("bcm", pots[pot]["raw"], pots[pot]["ref"], 3)
+        out[pot] = {"rms_mm": fit.rms, "max_mm": fit.max_abs}
+    _, resid, _, _ = fit_df(assembly["d1_mm"], assembly["df_mm"], 4)
+    out["df4_binned_mm"] = binned_peak(assembly["d1_mm"], resid)
+    return out
+
+
 def run_paper(session, rig, prompter, opts, out_dir, say=print):
     out_dir = Path(out_dir)
     t0 = time.monotonic()
@@ -33,6 +61,8 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
 
     order = opts.order if opts.order is not None else DEFAULT_ORDER.get(opts.model)
     results["model"] = "%s%s" % (opts.model, "" if order is None else " order %d" % order)
+    if opts.model == "auto":
+        results["model"] += " (budget %d numbers)" % opts.budget
 
     say("== calibration (all steps) ==")
     accepted = run_steps(session, rig, prompter, STEPS, opts)
@@ -45,6 +75,8 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     results["calibration"] = {s: accepted[s].lines for s in STEPS}
     results["calibration_plots"] = [p.name for s in STEPS for p in accepted[s].plots]
     pots = accepted["pots"].data
+    results["pot_models"] = {pot: "%s order %d" % (pots[pot]["fit"].model, pots[pot]["fit"].order) for pot in ("pot1", "pot2")}
+    results["paper_method_offline"] = paper_method_offline(pots, accepted["assembly"].data)
     for pot in ("pot1", "pot2"):
         _save_sweep(out_dir / ("sweep-%s.csv" % pot), pots[pot])
     calibrated = Path(opts.out)
@@ -57,9 +89,12 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     timings["fig3a"] = time.monotonic() - t
 
     results["fig5"] = accepted["assembly"].data["stats"]
-    results["force_fit"] = {"coeffs_f": list(accepted["force"].data["coeffs_f"]),
-                            "coeffs_d": list(accepted["force"].data["coeffs_d"]),
-                            "hysteresis_n": accepted["force"].data["hysteresis_n"]}
+    fd = accepted["force"].data
+    results["force_fit"] = {"coeffs_f": list(fd["coeffs_f"]), "coeffs_d": list(fd["coeffs_d"]),
+                            "hysteresis_n": fd["hysteresis_n"], "friction_n": fd["friction_n"],
+                            "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"])}
+    results["method"] = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
+                         "friction": opts.friction, "budget": opts.budget}
 
     t = time.monotonic()
     bits = session.board["adc_bits"]
@@ -75,7 +110,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
     session.flash(calibrated)
     after = displacement.run_targets(session, rig, opts.ref_scale, label="after")
-    for target in (5.0, 1.0, 10.0):
+    for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
         blocking.append(("with Df", force_runs.blocking_run(session, rig, target)))
     results["fig7"] = {"before": before, "after": after}
     displacement.plot(out_dir / "fig7.png", before, after)
@@ -88,9 +123,11 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     dz_rows, dz = force_runs.dead_zone(session, rig, opts.anchor_mm)
     results["dead_zone"] = {"rows": dz_rows, "dead_zone_n": dz}
     say("== Table 1: force steps ==")
-    results["table1"] = force_runs.force_steps(session, rig, opts.anchor_mm)
+    sides = ("high", "low") if opts.gauge_sides == "both" else (opts.gauge_sides,)
+    results["table1"] = [row for side in sides for row in force_runs.force_steps(session, rig, opts.anchor_mm, side)]
     timings["force"] = time.monotonic() - t
     timings["total"] = time.monotonic() - t0
     results["timings"] = timings
+    save_results(out_dir / "results.json", results)  # first: a report bug must not lose the run
     path = report.write(out_dir, results, opts)
     return path, results
