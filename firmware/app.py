@@ -70,6 +70,7 @@ class App:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
         self._timer = None
+        self.timer_kind = hal.timer_kind(self.board)  # what the board file asks; start() says what it got
         self._quit = False
 
     def set_calibration(self, cal):
@@ -105,6 +106,7 @@ class App:
             "target": self.ctrl.target,
             "duty": self.ctrl.duty,
             "steps": self.ctrl.steps,
+            "timer": self.timer_kind,
         }
 
     def heartbeat(self):
@@ -208,8 +210,7 @@ class App:
     def start(self):
         """Start the control timer (run() does this)."""
         if self._timer is None:
-            self._timer = hal.timer(self.machine, self.board)
-            hal.start_timer(self._timer, self.machine, self.board, self.step)
+            self._timer, self.timer_kind = hal.start_loop(self.machine, self.board, self.step)
 
     def shutdown(self):
         """Stop the timer, then the motor. Safe to call any number of times."""
