@@ -42,7 +42,7 @@ def load(path):
         return json.load(f)
 
 
-def make_app(data, with_cal=True, board_path="boards/sim.json"):
+def make_app(data, with_cal=True, board_path="boards/sim.json", exit_path=None):
     from firmware.app import App
 
     with open(board_path) as f:
@@ -52,7 +52,7 @@ def make_app(data, with_cal=True, board_path="boards/sim.json"):
         if name in data["codes"]:
             codes[pin] = data["codes"][name]
     machine = ReplayMachine(codes)
-    app = App(board_path, None, machine=machine)
+    app = App(board_path, None, machine=machine, exit_path=exit_path)
     if with_cal:
         app.set_calibration(Cal(data["cal"]))
     return app, machine

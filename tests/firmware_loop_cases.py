@@ -186,3 +186,129 @@ def case_loop_hz_checks():
         assert b["timer_tick_hz"] % b["loop_hz"] == 0
         shipped.append([name, b["timer_api"], b["timer_tick_hz"]])
     return {"accepted": accepted, "reasons": reasons, "shipped": shipped}
+
+
+# --- why run() ended: recorded after the motor is off, readable at the next boot -------------
+
+
+def _soft_reset():
+    """What machine.soft_reset() does on a board (and on the unix port): raise SystemExit."""
+    try:
+        import machine
+    except ImportError:  # CPython: no machine module
+        raise SystemExit
+    machine.soft_reset()
+
+
+class ExitingLink:
+    """Polled by run(): fires the timer like time passing while the motor is driven, then ends
+    run() the way `how` says; it also reads the exit file while run() is running."""
+
+    def __init__(self, app, how, exit_path, polls=20):
+        self.app = app
+        self.how = how
+        self.exit_path = exit_path
+        self.polls = 0
+        self.last = polls
+        self.duty_seen = 0
+        self.while_running = None
+
+    def poll(self):
+        from firmware_cases import pwm_duties
+
+        self.polls += 1
+        if self.polls == 1:
+            with open(self.exit_path) as f:
+                self.while_running = f.read()
+        self.app._timer.fire(10)
+        self.app.heartbeat()
+        self.duty_seen = max(self.duty_seen, max(pwm_duties(self.app)))
+        if self.polls < self.last:
+            return
+        if self.how == "ctrl_c":
+            raise KeyboardInterrupt
+        if self.how == "soft_reset":
+            _soft_reset()
+        if self.how == "exception":
+            raise OSError(5)
+        self.app.quit()
+
+
+EXIT_EXPECT = {
+    # how: (exception run() must re-raise, fault latched, start of the recorded cause)
+    "ctrl_c": (KeyboardInterrupt, "interrupted", "interrupted: KeyboardInterrupt (Ctrl-C)"),
+    "soft_reset": (SystemExit, "soft_reset", "soft_reset: SystemExit"),
+    "exception": (OSError, "run_exception", "run_exception: OSError"),
+    "quit": (None, None, "returned: run() ended normally"),
+}
+
+
+def case_exit_cause(path, exit_path, how):
+    """run() driving the motor ends by `how`: the motor is off, the cause is in status() and in
+    the exit file, and an App booted afterwards (the next boot) reports it as last_exit."""
+    import os
+
+    from firmware.app import EXIT_RUNNING
+    from firmware_cases import load, make_app, pwm_duties
+
+    try:
+        os.remove(exit_path)
+    except OSError:
+        pass
+    data = load(path)
+    app, _ = make_app(data, exit_path=exit_path)
+    assert app.status()["last_exit"] is None  # the first boot: nothing recorded yet
+    app.set_mode("open_loop")
+    app.set_target(5000)
+    link = ExitingLink(app, how, exit_path)
+    expect_exc, fault, prefix = EXIT_EXPECT[how]
+    raised = None
+    try:
+        app.run(link)
+    except BaseException as exc:  # noqa: B036 - SystemExit and KeyboardInterrupt are the point
+        raised = exc
+    if expect_exc is None:
+        assert raised is None, repr(raised)
+    else:
+        assert isinstance(raised, expect_exc), repr(raised)  # re-raised for the REPL / reset
+    assert link.duty_seen > 0 and link.while_running == EXIT_RUNNING, link.while_running
+    assert pwm_duties(app) == [0, 0] and app._timer is None
+    st = app.status()
+    assert st["mode"] == "idle" and st["duty"] == 0, st
+    assert st["faults"] == ([fault] if fault else []), st
+    text = st["last_exit"]
+    assert text.startswith(prefix) and text.endswith("after 200 steps, motor off"), text
+    with open(exit_path) as f:
+        assert f.read() == text
+    # the next boot (a new App on the same flash) reads it back
+    again, _ = make_app(data, exit_path=exit_path)
+    st2 = again.status()
+    assert st2["last_exit"] == text and st2["faults"] == [] and st2["mode"] == "idle", st2
+    return {"exit": text.split(":")[0], "tail": text[-28:], "faults": st["faults"],
+            "raised": type(raised).__name__ if raised is not None else None}
+
+
+def case_exit_unrecorded(path, exit_path):
+    """A run() that never reaches its finally (power loss, hard reset) leaves the running marker,
+    and the next boot says so rather than repeating an older cause."""
+    from firmware.app import EXIT_RUNNING
+    from firmware_cases import load, make_app
+
+    data = load(path)
+    with open(exit_path, "w") as f:
+        f.write("interrupted: KeyboardInterrupt (Ctrl-C) after 7 steps, motor off")
+    app, _ = make_app(data, exit_path=exit_path)
+    assert app.status()["last_exit"].startswith("interrupted")
+    app._write_exit(EXIT_RUNNING)  # what run() writes first; then the power goes
+    again, _ = make_app(data, exit_path=exit_path)
+    assert again.status()["last_exit"] == EXIT_RUNNING
+    # no exit file configured (tests, a read-only flash): nothing written, status still has it
+    bare, _ = make_app(data)
+    bare.set_mode("open_loop")
+    bare.set_target(2000)
+    try:
+        bare.run(ExitingLink(bare, "ctrl_c", exit_path, polls=3))
+    except KeyboardInterrupt:
+        pass
+    assert bare.status()["last_exit"].startswith("interrupted")
+    return {"marker": EXIT_RUNNING}

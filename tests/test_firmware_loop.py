@@ -1,11 +1,23 @@
-"""The loop timer per board file (tests/firmware_loop_cases.py), on CPython and the real MicroPython."""
+"""The loop timer per board file and why run() ended (tests/firmware_loop_cases.py), on CPython
+and the real MicroPython."""
 
 import json
 
 import pytest
 
+import fake_hardware
 import firmware_loop_cases
 from micropython_runner import REPO, run_micropython
+
+
+@pytest.fixture(scope="module")
+def data_path(tmp_path_factory):
+    board = fake_hardware.sim_board()
+    data = {"codes": fake_hardware.record_codes(board, steps=300, duty=3000),
+            "cal": fake_hardware.model_calibration(board)}
+    path = tmp_path_factory.mktemp("loop") / "data.json"
+    path.write_text(json.dumps(data))
+    return str(path)
 
 
 def on_micropython(call):
@@ -62,3 +74,32 @@ def test_loop_hz_must_fit_the_board_timer():
         ["pyboard", "pyb", 84000000],
         ["sim", "machine", 1000000],
     ]
+
+
+@pytest.mark.parametrize(
+    "how,raised,faults",
+    [
+        ("ctrl_c", "KeyboardInterrupt", ["interrupted"]),
+        ("soft_reset", "SystemExit", ["soft_reset"]),  # machine.soft_reset() on MicroPython
+        ("exception", "OSError", ["run_exception"]),
+        ("quit", None, []),
+    ],
+)
+def test_run_records_why_it_ended_and_the_next_boot_reads_it(data_path, tmp_path, how, raised, faults):
+    call = "case_exit_cause(%r, %%r, %r)" % (data_path, how)
+    here = eval("firmware_loop_cases." + call % str(tmp_path / "here.txt"))
+    there = on_micropython(call % str(tmp_path / "there.txt"))
+    assert here == there
+    assert here["raised"] == raised and here["faults"] == faults
+    assert here["exit"] == (faults[0] if faults else "returned")
+    texts = [(tmp_path / name).read_text() for name in ("here.txt", "there.txt")]
+    if how == "exception":  # repr(OSError(5)) is "OSError(5)" on CPython, "OSError(5,)" on MicroPython
+        texts = [t.replace("(5,)", "(5)") for t in texts]
+    assert texts[0] == texts[1]
+
+
+def test_an_exit_that_never_reached_finally_is_reported_as_such(data_path, tmp_path):
+    call = "case_exit_unrecorded(%r, %%r)" % data_path
+    here = eval("firmware_loop_cases." + call % str(tmp_path / "here.txt"))
+    there = on_micropython(call % str(tmp_path / "there.txt"))
+    assert here == there and "power loss" in here["marker"]
