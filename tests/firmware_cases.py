@@ -108,7 +108,9 @@ def case_heap_lock(path, mode, target, n=10000):
     if mode != "idle":
         assert app.ctrl.duty != 0, "the loop never drove the motor"
     assert app.telemetry.available() > 0
-    return {"locked": locked, "before": before, "after": after, "duty": app.ctrl.duty}
+    cal = app.calibration
+    pots = [cal.pot1[0], cal.pot2[0]] if cal is not None else None
+    return {"locked": locked, "before": before, "after": after, "duty": app.ctrl.duty, "pots": pots}
 
 
 def case_rail_fault(path, pot):
