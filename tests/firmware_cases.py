@@ -17,9 +17,11 @@ try:
 except ImportError:
     micropython = None
 
+# Every firmware module (test_firmware_cases checks this against firmware/*.py).
 MODULES = (
-    "hal", "board_config", "sampler", "measurement", "pi_control", "motor", "safety",
-    "telemetry", "controller", "app",
+    "portable", "hal", "board_config", "sampler", "bcm_fixed", "pwl_fixed", "poly_fixed",
+    "calibration", "measurement", "pi_control", "motor", "safety", "telemetry", "controller",
+    "protocol", "link", "app", "board_main",
 )
 
 

@@ -82,6 +82,8 @@ def both(call, data_path=None):
 def test_every_module_imports_on_both():
     here, there = both("case_imports()")
     assert here["modules"] == there["modules"] == list(firmware_cases.MODULES)
+    every = sorted(p.stem for p in (REPO / "firmware").glob("*.py") if p.stem != "__init__")
+    assert sorted(firmware_cases.MODULES) == every  # a new module joins the list or fails here
 
 
 @pytest.mark.parametrize("pots", ["pwl", "bcm3"])
