@@ -263,12 +263,16 @@ class App:
                 if idle is not None:
                     idle()
         except BaseException as exc:  # KeyboardInterrupt and SystemExit too
-            self.shutdown()  # the motor off before anything else
-            cause = self._exit_cause(exc)
+            try:
+                self.shutdown()  # the motor off before anything else
+            finally:
+                cause = self._exit_cause(exc)
             raise
         finally:
-            self.shutdown()
-            self._record_exit(cause)
+            try:
+                self.shutdown()
+            finally:
+                self._record_exit(cause)
 
     def _exit_cause(self, exc):
         """Latch the fault for an exception that ended run(); the cause text for the record."""
@@ -280,7 +284,10 @@ class App:
             return "soft_reset: SystemExit (soft reset or sys.exit)"
         self.safety.exc = exc
         self.safety.trip(FAULT_RUN_EXCEPTION)
-        return "run_exception: %r" % (exc,)
+        try:
+            return "run_exception: %r" % (exc,)
+        except Exception:  # e.g. MemoryError: the kind of exit is still worth recording
+            return "run_exception"
 
     def _record_exit(self, cause):
         """Remember why run() ended (after the motor is off): in status() and in the exit file,
