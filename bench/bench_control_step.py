@@ -32,7 +32,7 @@ class FloatStep:
         self.kp = 768 / 256.0
         self.ki = 16 / 65536.0
         self.kpf = 2560 / 256.0
-        self.kif = 1024 / 65536.0
+        self.kif = 8192 / 65536.0
         self.mode = 0
         self.target = 0.0
 
@@ -94,11 +94,12 @@ class FloatStep:
             cmd = 0.0
         pos_hi = d1 if d1 > d2 else d2
         pos_lo = d1 if d1 < d2 else d2
-        room = (59.0 - pos_hi) if cmd > 0 else (pos_lo - 1.0)
-        if room <= 0.0:
-            cmd = 0.0
-        elif room < 3.0:
-            cmd = cmd * room / 3.0
+        room = (59.5 - pos_hi) if cmd > 0 else (pos_lo - 0.5)
+        cap = 0.0 if room <= 0.0 else (10000.0 * room / 5.0 if room < 5.0 else 10000.0)
+        if cmd > cap:
+            cmd = cap
+        elif cmd < -cap:
+            cmd = -cap
         step = 500.0
         duty = self.duty + max(-step, min(step, cmd - self.duty))
         self.duty = duty

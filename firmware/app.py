@@ -2,8 +2,10 @@
 
 The link (firmware/link.py) calls these methods; the timer calls Controller.step. Every path
 out of run() (return, exception, KeyboardInterrupt, soft reset's SystemExit) leaves the motor
-off. Without a usable calibration, raw readings and open loop still work; closed-loop modes are
-refused with the reason, and status() shows it.
+off, and then records why run() ended: status()["last_exit"], and a one-line file (`exit_path`,
+"last_exit.txt" on a board) that the next boot reads back, so the cause of a Ctrl-C or a soft
+reset is readable afterwards. Without a usable calibration, raw readings and open loop still
+work; closed-loop modes are refused with the reason, and status() shows it.
 """
 
 from firmware import hal
@@ -20,12 +22,16 @@ from firmware.controller import (
 from firmware.measurement import STROKE_CLAMP_UM, Measurement
 from firmware.motor import Motor
 from firmware.pi_control import DUTY_MAX
-from firmware.safety import FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, Safety
+from firmware.safety import FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
 from firmware.sampler import Sampler
 from firmware.telemetry import Ring
 
 VERSION = "0.1.0"
 FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
+EXIT_TEXT_MAX = 200
+# What the exit file says while run() runs: if the next boot still finds it, run() never got to
+# its finally (power loss, hard reset, watchdog, crash).
+EXIT_RUNNING = "none recorded: run() was still running (power loss, hard reset, watchdog or crash)"
 
 try:
     import micropython
@@ -33,6 +39,18 @@ try:
     micropython.alloc_emergency_exception_buf(100)  # tracebacks from the timer IRQ
 except (ImportError, AttributeError):
     pass
+
+
+def _read_exit(path):
+    """The exit cause the previous run() left in `path`, or None (no file, nothing readable)."""
+    if path is None:
+        return None
+    try:
+        with open(path) as f:
+            text = f.read(EXIT_TEXT_MAX).strip()
+    except (OSError, ValueError):  # no file yet; undecodable bytes
+        return None
+    return text or None
 
 
 def _load_calibration(path):
@@ -54,7 +72,7 @@ def _load_calibration(path):
 
 
 class App:
-    def __init__(self, board_path, calibration_path, machine=None, ring_records=128):
+    def __init__(self, board_path, calibration_path, machine=None, ring_records=128, exit_path=None):
         self.board = load_board(board_path)
         self.machine = hal.get_machine(self.board, machine)
         # The motor first, so that whatever fails later at boot, the bridge is already off.
@@ -70,7 +88,10 @@ class App:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
         self._timer = None
+        self.timer_kind = hal.timer_kind(self.board)  # what the board file asks; start() says what it got
         self._quit = False
+        self.exit_path = exit_path
+        self.last_exit = _read_exit(exit_path)  # why the previous run() ended (this boot's or the last)
 
     def set_calibration(self, cal):
         """Use a loaded Calibration (or None for raw readings only). Goes idle first."""
@@ -105,6 +126,8 @@ class App:
             "target": self.ctrl.target,
             "duty": self.ctrl.duty,
             "steps": self.ctrl.steps,
+            "timer": self.timer_kind,
+            "last_exit": self.last_exit,
         }
 
     def heartbeat(self):
@@ -209,8 +232,7 @@ class App:
     def start(self):
         """Start the control timer (run() does this)."""
         if self._timer is None:
-            self._timer = hal.timer(self.machine, self.board)
-            hal.start_timer(self._timer, self.machine, self.board, self.step)
+            self._timer, self.timer_kind = hal.start_loop(self.machine, self.board, self.step)
 
     def shutdown(self):
         """Stop the timer, then the motor. Safe to call any number of times."""
@@ -228,22 +250,62 @@ class App:
         self._quit = True
 
     def run(self, link=None):
-        """Main loop: the timer runs the step, this loop serves the link. Motor off on exit."""
+        """Main loop: the timer runs the step, this loop serves the link. Motor off on exit,
+        then the cause recorded (status()["last_exit"] and the exit file)."""
         idle = getattr(self.machine, "idle", None)
         self._quit = False
+        cause = None
         try:
+            self._write_exit(EXIT_RUNNING)
             self.start()
             while not self._quit:
                 if link is not None:
                     link.poll()
                 if idle is not None:
                     idle()
-        except KeyboardInterrupt:
-            self.safety.trip(FAULT_INTERRUPTED)
-            raise
-        except Exception as exc:
-            self.safety.exc = exc
-            self.safety.trip(FAULT_RUN_EXCEPTION)
+        except BaseException as exc:  # KeyboardInterrupt and SystemExit too
+            try:
+                self.shutdown()  # the motor off before anything else
+            finally:
+                cause = self._exit_cause(exc)
             raise
         finally:
-            self.shutdown()
+            try:
+                self.shutdown()
+            finally:
+                self._record_exit(cause)
+
+    def _exit_cause(self, exc):
+        """Latch the fault for an exception that ended run(); the cause text for the record."""
+        if isinstance(exc, KeyboardInterrupt):
+            self.safety.trip(FAULT_INTERRUPTED)
+            return "interrupted: KeyboardInterrupt (Ctrl-C)"
+        if isinstance(exc, SystemExit):
+            self.safety.trip(FAULT_SOFT_RESET)
+            return "soft_reset: SystemExit (soft reset or sys.exit)"
+        self.safety.exc = exc
+        self.safety.trip(FAULT_RUN_EXCEPTION)
+        try:
+            return "run_exception: %r" % (exc,)
+        except Exception:  # e.g. MemoryError: the kind of exit is still worth recording
+            return "run_exception"
+
+    def _record_exit(self, cause):
+        """Remember why run() ended (after the motor is off): in status() and in the exit file,
+        where the next boot finds it. A record that cannot be made must not hide the exit."""
+        try:
+            if cause is None:
+                cause = "returned: run() ended normally (quit)"
+            self.last_exit = ("%s after %d steps, motor off" % (cause, self.ctrl.steps))[:EXIT_TEXT_MAX]
+        except Exception:  # MemoryError while formatting: keep the bare cause
+            self.last_exit = cause
+        self._write_exit(self.last_exit)
+
+    def _write_exit(self, text):
+        if self.exit_path is None or text is None:
+            return
+        try:
+            with open(self.exit_path, "w") as f:
+                f.write(text)
+        except Exception:  # a full or read-only filesystem: the status still has it
+            pass

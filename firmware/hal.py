@@ -65,12 +65,36 @@ def out_pin(machine, pin_id):
     return machine.Pin(pin_id, machine.Pin.OUT, value=0)
 
 
-def timer(machine, board):
-    return machine.Timer(board.get("timer_id", -1))
+def timer_kind(board):
+    """How the board file's loop timer runs the step: "hard" (in the timer interrupt) or "soft"
+    (scheduled to run between bytecodes of the main loop, so garbage collection delays it)."""
+    if board.get("timer_api") == "pyb" or board.get("timer_hard"):
+        return "hard"
+    return "soft"
 
 
-def start_timer(tim, machine, board, callback):
-    kwargs = {"freq": board["loop_hz"], "mode": machine.Timer.PERIODIC, "callback": callback}
-    if "timer_hard" in board:
-        kwargs["hard"] = board["timer_hard"]
-    tim.init(**kwargs)
+def start_loop(machine, board, callback):
+    """Start the periodic loop timer at board["loop_hz"] calling `callback(timer)`.
+
+    Returns (timer, kind): the object to deinit() and "hard" or "soft" (what it really is).
+    - "timer_api": "pyb" (the stm32 port): pyb.Timer(timer_id, freq=, callback=); pyb.Timer
+      callbacks run in hard IRQ context on every stm32 release.
+    - otherwise machine.Timer(timer_id).init(freq=, mode=PERIODIC, callback=), with hard=True
+      when the board file says "timer_hard": true. A port that refuses it (rp2 before 1.26 has
+      no hard= and raises TypeError; esp32 raises ValueError "hard Timers are not implemented")
+      gets the same timer without hard=, which is soft: reported as such, never silent.
+    """
+    hz = board["loop_hz"]
+    if board.get("timer_api") == "pyb":
+        import pyb
+
+        return pyb.Timer(board["timer_id"], freq=hz, callback=callback), "hard"
+    tim = machine.Timer(board.get("timer_id", -1))
+    if board.get("timer_hard"):
+        try:
+            tim.init(freq=hz, mode=machine.Timer.PERIODIC, callback=callback, hard=True)
+            return tim, "hard"
+        except (TypeError, ValueError):
+            pass
+    tim.init(freq=hz, mode=machine.Timer.PERIODIC, callback=callback)
+    return tim, "soft"

@@ -53,7 +53,7 @@ TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
 # Commands: (name, argument names, result, what it does). Arguments are ASCII tokens;
 # integers are decimal. `int` arguments must fit +-2**30 (the board's small-int range).
 COMMANDS = (
-    ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, protocol",
+    ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, timer, last_exit, protocol",
      "identify the firmware and report its state (the handshake)"),
     ("stop", (), "null", "motor off, mode idle"),
     ("mode", ("name",), "null", "switch mode: idle, open_loop, position or force"),

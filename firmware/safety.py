@@ -13,6 +13,7 @@ FAULT_HOST_TIMEOUT = const(4)
 FAULT_STEP_EXCEPTION = const(8)
 FAULT_INTERRUPTED = const(16)
 FAULT_RUN_EXCEPTION = const(32)
+FAULT_SOFT_RESET = const(64)
 
 FAULT_NAMES = (
     (FAULT_RAIL_POT1, "rail_pot1"),
@@ -21,6 +22,7 @@ FAULT_NAMES = (
     (FAULT_STEP_EXCEPTION, "step_exception"),
     (FAULT_INTERRUPTED, "interrupted"),
     (FAULT_RUN_EXCEPTION, "run_exception"),
+    (FAULT_SOFT_RESET, "soft_reset"),
 )
 
 
@@ -82,4 +84,6 @@ class Safety:
             return "run() interrupted (KeyboardInterrupt): motor stopped"
         if bit == FAULT_RUN_EXCEPTION:
             return "exception in the main loop: %r" % (self.exc,)
+        if bit == FAULT_SOFT_RESET:
+            return "run() ended by SystemExit (soft reset or sys.exit): motor stopped"
         return "fault 0x%x" % bit

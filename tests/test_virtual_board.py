@@ -122,6 +122,24 @@ def test_ctrl_c_stops_the_firmware_with_the_motor_off(vboard):
     assert float(out.split()[-2]) == 0.0
 
 
+def test_ctrl_c_cause_is_readable_after_the_next_boot(vboard):
+    """Ctrl-C while driving: the REPL gets control with the motor off; the soft reset that boots
+    main.py again finds why the last run ended in last_exit.txt and reports it in status."""
+    from firmware.app import EXIT_RUNNING
+
+    with BoardClient(vboard.path) as board:
+        board.call("mode", "open_loop")
+        board.call("target", 3000)
+        time.sleep(0.2)
+        board.serial.write(b"\x03")
+        time.sleep(0.5)
+    assert (vboard.root / "last_exit.txt").read_text().startswith("interrupted: KeyboardInterrupt")
+    with BoardClient(vboard.path) as board:  # at the REPL: the client soft-resets, main.py boots
+        last = board.status_info["last_exit"]
+    assert last.startswith("interrupted: KeyboardInterrupt (Ctrl-C) after ") and last.endswith(" steps, motor off"), last
+    assert (vboard.root / "last_exit.txt").read_text() == EXIT_RUNNING  # the new run is under way
+
+
 def test_client_errors_are_one_line_user_errors(vboard, tmp_path):
     with pytest.raises(UserError, match="not found"):
         BoardClient(str(tmp_path / "ttyNONE"))
