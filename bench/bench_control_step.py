@@ -3,7 +3,8 @@
 Times the firmware's fixed-point step as shipped (firmware/controller.py) in every mode, with
 BCM-3 pots (the paper's calibration) and with pwl-table pots, against an equivalent float step
 in the same run (same ADC replay, same conversions in float: rational Bernstein or table
-interpolation, Horner Df and force, float PI, stroke and slew limits). ADC codes are recorded
+interpolation, Horner Df and force, the friction play operator and its band-edge choice, float PI,
+stroke and slew limits). ADC codes are recorded
 from the simulated actuator; calibrations are fitted and exported from it.
 
     .venv/bin/python bench/bench_control_step.py [--steps 5000]
@@ -35,6 +36,9 @@ class FloatStep:
         self.kif = 8192 / 65536.0
         self.mode = 0
         self.target = 0.0
+        self.ff = None  # low-passed spring force, N
+        self.out = 0.0  # the play operator's output, N
+        self.fdir = 0
 
     def pot(self, sec, code):
         if sec[0] == "bcm":
@@ -77,6 +81,14 @@ class FloatStep:
         d2 = self.pot(c["pot2"], s.raw2)
         defl = d1 - d2
         force = self.horner(c["force"], defl)
+        h = c["friction"]
+        if h:
+            self.ff = force if self.ff is None else self.ff + (force - self.ff) / 32.0
+            if self.ff > self.out + h:
+                self.out = self.ff - h
+            elif self.ff < self.out - h:
+                self.out = self.ff + h
+            force = self.out
         if self.mode == 1:
             cmd = self.target
         elif self.mode == 2 or self.mode == 3:
@@ -84,7 +96,12 @@ class FloatStep:
                 e = self.target - d2 * 1000.0
                 kp, ki = self.kp, self.ki
             else:
-                e = self.horner(c["force_inverse"], self.target / 1000.0) * 1000.0 - defl * 1000.0
+                ef = self.target / 1000.0 - force
+                if ef < -h / 8.0:
+                    self.fdir = 1
+                elif ef > h / 8.0:
+                    self.fdir = -1
+                e = self.horner(c["force_inverse"], self.target / 1000.0 - h * self.fdir) * 1000.0 - defl * 1000.0
                 kp, ki = self.kpf, self.kif
             u = kp * e + self.integ
             if -8000.0 < u < 8000.0:
@@ -206,8 +223,8 @@ def _float_polys(board, world):
     cav = float(board["actuator"]["springs"]["cavity_mm"])
     d = np.linspace(-cav, cav, 401)
     f = np.array([world.spring_force(v) for v in d])
-    return {"df": list(np.polyfit(d1, d1 - d2, 4)), "force": list(np.polyfit(d, f, 3)),
-            "force_inverse": list(np.polyfit(f, d, 3))}
+    return {"df": list(np.polyfit(d1, d1 - d2, 8)), "force": list(np.polyfit(d, f, 3)),
+            "force_inverse": list(np.polyfit(f, d, 3)), "friction": float(board["actuator"]["block"]["coulomb_n"])}
 
 
 def main():
