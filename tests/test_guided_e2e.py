@@ -83,6 +83,26 @@ def test_closed_loop_error_is_smaller_after_calibration(full_run, tmp_path):
     assert e_after < 0.5 and e_after < e_before / 3, (e_before, e_after)
 
 
+def test_force_step_reads_the_gauge_channel(full_run, tmp_path):
+    # --gauge adc: the gauge's analog output on the board's reference input, read through the
+    # firmware's telemetry instead of the gauge's display
+    import shutil
+
+    out, accepted, _ = full_run
+    cal = tmp_path / "calibration.json"
+    shutil.copyfile(out, cal)
+    said = []
+    args = build_parser().parse_args(["calibrate", "force", "--port", "sim", "--out", str(cal), "--gauge", "adc",
+                                      "--gauge-sides", "high"] + SHORT)
+    force = calibrate(args, say=said.append)["force"].data
+    assert any("analog output to the board's reference input" in line for line in said)
+    assert 0.1 < force["friction_n"] < 0.4 and force["rms_n"] < force["rms_plain_n"] / 2, force
+    display = accepted["force"].data  # the same spring, read from the display in the full run
+    for d in (-1.0, -0.5):
+        assert abs(np.polyval(force["coeffs_f"], d) - np.polyval(display["coeffs_f"], d)) < 0.25
+    assert read_calibration(cal)["friction"]["fixed"][0] == round(force["friction_n"] * 1000)
+
+
 def test_a_lifted_wiper_is_refused_under_yes(tmp_path):
     from host.guided.flow import Options, run_steps
     from host.guided.prompts import Prompter

@@ -29,7 +29,7 @@ from boards.sim import noise
 from boards.sim.potentiometer import Potentiometer
 
 CHANNELS = ("pot1", "pot2", "reference", "gauge")
-REFERENCE_TARGETS = ("pot1", "pot2", "nut", "block")
+REFERENCE_TARGETS = ("pot1", "pot2", "nut", "block", "gauge")
 _NOISE_MASK = noise.TABLE_SIZE - 1
 
 
@@ -133,7 +133,9 @@ class Actuator:
     def set_reference(self, target):
         """Where the calibration rig's reference sensor is mounted: in parallel with "pot1" or
         "pot2" (it then measures that pot's wiper travel, as on the paper's bench rig, so the
-        mounting error stays for calibration 2), or on the true "nut" / "block" position."""
+        mounting error stays for calibration 2), or on the true "nut" / "block" position; or
+        "gauge": the force gauge's analog output wired to the reference input instead (the force
+        step's gauge channel), read as the gauge channel's signal."""
         if target not in REFERENCE_TARGETS:
             raise ValueError("reference target must be one of %s" % (REFERENCE_TARGETS,))
         self.reference_on = target
@@ -272,11 +274,15 @@ class Actuator:
         full = self.full_code * 256.0
         self._base_q8[0] = _q8(self.pots[0].fraction(self.nut_mm), full)
         self._base_q8[1] = _q8(self.pots[1].fraction(self.block_mm), full)
-        self.reference_mm = self._reference_position()
-        self._base_q8[2] = _q8((self.reference_mm - self.ref_zero) / self.ref_span, full)
         g = self.gauge
         self._base_q8[3] = _q8(float(g["zero_fraction"]) + self.gauge_reading_n
                                / float(g["n_per_fraction"]), full)
+        if self.reference_on == "gauge":
+            self.reference_mm = float("nan")
+            self._base_q8[2] = self._base_q8[3]
+        else:
+            self.reference_mm = self._reference_position()
+            self._base_q8[2] = _q8((self.reference_mm - self.ref_zero) / self.ref_span, full)
 
     def _reference_position(self):
         t = self.reference_on

@@ -28,6 +28,7 @@ def add_parser(subparsers):
     p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over its full scale, mm (real boards)")
     p.add_argument("--manual-points", type=int, default=12, help="--reference manual: stops per direction (default 12)")
     add_method_arguments(p)
+    add_gauge_arguments(p)
     p.add_argument("--duty", type=int, default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
     p.add_argument("--rounds", type=int, default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
     p.add_argument("--levels", type=int, default=8, help="force: duty steps per loading (default 8)")
@@ -61,6 +62,22 @@ def add_method_arguments(p):
                    "rig), the 0 mm side (low: positive forces), or one after the other (both, default)")
     p.add_argument("--no-friction", action="store_true", help="force: fit F0(d) without the output block's friction "
                    "term (the paper's model); by default the friction is identified and the firmware compensates it")
+
+
+def add_gauge_arguments(p):
+    """How the force gauge is read, shared with `host experiment`."""
+    p.add_argument("--gauge", choices=("display", "adc"), default="display",
+                   help="force gauge readings: from its display (typed in on a real bench; default) or from its analog "
+                   "output wired to the board's reference ADC input (adc)")
+    p.add_argument("--gauge-zero-n", type=float, default=None, help="--gauge adc: force at ADC code 0, N (real boards)")
+    p.add_argument("--gauge-span-n", type=float, default=None, help="--gauge adc: force over the ADC's full scale, N (real boards)")
+
+
+def make_rig(args, prompter, session):
+    from host.guided.rig import Rig, gauge_scale
+
+    scale = gauge_scale(session.board, args.gauge_zero_n, args.gauge_span_n) if args.gauge == "adc" else None
+    return Rig(prompter, session.root, gauge=args.gauge, gauge_scale=scale, adc_bits=session.board["adc_bits"])
 
 
 def method_options(args):
@@ -103,7 +120,7 @@ def options_from(args):
 def calibrate(args, say=print, ask=None):
     """Run the requested steps; returns {step: StepOutcome} (used by host experiment too)."""
     from host.guided.prompts import Prompter
-    from host.guided.rig import Rig, reference_scale
+    from host.guided.rig import reference_scale
     from host.guided.session import Session
 
     opts = options_from(args)
@@ -114,7 +131,7 @@ def calibrate(args, say=print, ask=None):
             raise UserError("--yes with --reference manual: nobody to read the dial gauge")
         if "pots" in steps and opts.reference == "adc":
             opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
-        rig = Rig(prompter, session.root)
+        rig = make_rig(args, prompter, session)
         return run_steps(session, rig, prompter, steps, opts)
 
 

@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from host.commands.calibrate import add_method_arguments, method_options
+from host.commands.calibrate import add_gauge_arguments, add_method_arguments, make_rig, method_options
 from host.errors import UserError
 
 
@@ -20,6 +20,7 @@ def add_parser(subparsers):
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports)")
     p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")
     add_method_arguments(p)
+    add_gauge_arguments(p)
     p.add_argument("--ref-zero-mm", type=float, default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over full scale, mm (real boards)")
     p.add_argument("--rounds", type=int, default=2, help="force identification rounds (paper: 5; default 2)")
@@ -30,7 +31,7 @@ def run(args):
     from host.experiments.paper import run_paper
     from host.guided.flow import Options
     from host.guided.prompts import Prompter
-    from host.guided.rig import Rig, reference_scale
+    from host.guided.rig import reference_scale
     from host.guided.session import Session
 
     out_dir = Path(args.out)
@@ -42,7 +43,7 @@ def run(args):
     opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), **method_options(args))
     with Session(args.port, args.board, None, say=prompter.say) as session:
         opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
-        rig = Rig(prompter, session.root)
+        rig = make_rig(args, prompter, session)
         path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say)
     print("report: %s (%.0f s)" % (path, results["timings"]["total"]))
     return 0

@@ -43,6 +43,8 @@ def _hook_slack(session, rig, anchor_mm, side="high"):
     acquire.hold(client, "position", int(slack * 1000), "d2_um", 50, timeout_s=8.0, measure_s=0.1)
     client.call("stop")
     rig.hook_gauge(anchor_mm, side)
+    if rig.gauge == "adc":
+        return rig.read_gauge_n(client)
     return float(np.mean([rig.gauge_reading_n() for _ in range(3 if rig.virtual else 1)]))
 
 
@@ -51,7 +53,7 @@ def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4, side="hig
     client.call("target", int(round(target_n * 1000)))
     acquire.collect(client, settle_s)
     rec = acquire.collect(client, measure_s)
-    gauge = SIDES[side] * (rig.gauge_reading_n() - tare)  # the gauge shows tension; the side gives the sign
+    gauge = SIDES[side] * (rig.read_gauge_n(client, rec) - tare)  # the gauge shows tension; the side gives the sign
     return gauge, acquire.mean(rec, "force_mN") / 1000.0
 
 

@@ -38,7 +38,10 @@ TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about
 SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
 
-def _gauge(rig, reads):
+def _gauge(rig, client, reads=1, records=None):
+    """The gauge's reading (N): `reads` display readings averaged, or the gauge channel."""
+    if rig.gauge == "adc":
+        return rig.read_gauge_n(client, records)
     return float(np.mean([rig.gauge_reading_n() for _ in range(reads)]))
 
 
@@ -78,7 +81,7 @@ def force_points(session, rig, prompter, opts, side="high"):
     tare_t, tares = [], []
 
     def tare():
-        tares.append(_gauge(rig, reads))
+        tares.append(_gauge(rig, client, reads))
         tare_t.append(time.monotonic())
 
     prompter.say("  taring the gauge (fibre slack)")
@@ -93,7 +96,7 @@ def force_points(session, rig, prompter, opts, side="high"):
                 acquire.collect(client, opts.settle_s)  # let it come to rest against the fibre
                 rec = acquire.collect(client, 0.3)
                 d.append(acquire.mean(rec, "defl_um") / 1000.0)
-                g.append(_gauge(rig, 1))
+                g.append(_gauge(rig, client, 1, rec))
                 t.append(time.monotonic())
                 loading.append(load)
                 progress_line("  %s side, round %d/%d %s duty %+5d: d %+.3f mm, gauge %.2f N" % (

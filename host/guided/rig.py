@@ -6,6 +6,11 @@ boards/sim/bench_rig.py applies it to the simulated world within ~100 ms; the ga
 read back from `gauge.json` there. The reference sensor's scale (its datasheet: the position at
 code 0 and the span over full scale) comes from the board file on the simulated board
 ("actuator.reference") and from --ref-zero-mm / --ref-span-mm on a real one.
+
+The force gauge is read one of two ways (`--gauge`): from its display ("display": typed in by the
+person on a real bench; the virtual rig's display file on the simulated one), or ("adc") from its
+analog output wired to the board's reference ADC input for the force step, through the firmware's
+telemetry, with the gauge's scale (--gauge-zero-n / --gauge-span-n, or the simulated board's file).
 """
 
 import json
@@ -19,10 +24,17 @@ APPLY_S = 0.35  # the rig polls every 100 ms; wait a few polls before trusting t
 
 
 class Rig:
-    def __init__(self, prompter, root=None):
+    def __init__(self, prompter, root=None, gauge="display", gauge_scale=None, adc_bits=12):
         self.prompter = prompter
         self.root = Path(root) if root else None
         self.state = {"reference": None, "load": {"kind": "none"}, "fault": None}
+        if gauge not in ("display", "adc"):
+            raise UserError("--gauge must be display or adc")
+        if gauge == "adc" and gauge_scale is None:
+            raise UserError("--gauge adc needs the gauge's scale: --gauge-zero-n and --gauge-span-n")
+        self.gauge = gauge
+        self.gauge_scale = gauge_scale  # (N at code 0, N over full scale) for --gauge adc
+        self.adc_bits = adc_bits
 
     @property
     def virtual(self):
@@ -53,9 +65,28 @@ class Rig:
         actuator forces, the paper's rig); "low": toward 0 mm, the block pushes away from it."""
         where = ("on the 60 mm side (the block pulls it toward 0 mm)" if side == "high"
                  else "on the 0 mm side (the block pulls it toward 60 mm)")
+        change = {"load": {"kind": "gauge", "anchor_mm": float(anchor_mm), "side": side}}
+        wire = ""
+        if self.gauge == "adc":
+            change["reference"] = "gauge"
+            wire = " Wire the gauge's analog output to the board's reference input."
         self._do("Hook the force gauge to the output block through the fibre, %s, anchored so it goes "
-                 "taut at D2 = %.0f mm." % (where, anchor_mm),
-                 load={"kind": "gauge", "anchor_mm": float(anchor_mm), "side": side})
+                 "taut at D2 = %.0f mm.%s" % (where, anchor_mm, wire), **change)
+
+    def read_gauge_n(self, client, records=None, seconds=0.3):
+        """The gauge's reading in N: from its display, or (--gauge adc) the mean of the reference
+        channel over `records` (telemetry just logged) or over `seconds` of new telemetry."""
+        if self.gauge == "display":
+            return self.gauge_reading_n()
+        from host.guided import acquire
+
+        if records is None or not len(records):
+            records = acquire.collect(client, seconds)
+        if not len(records):
+            raise UserError("no telemetry from the board while reading the gauge channel")
+        zero, span = self.gauge_scale
+        code = float(records[:, acquire.COL["raw_ref"]].astype(float).mean())
+        return zero + span * code / ((1 << self.adc_bits) - 1)
 
     def set_fault(self, fault):
         """Simulated boards only (tests): make a channel misbehave, e.g. {"channel": "pot1"}."""
@@ -78,6 +109,19 @@ class Rig:
                 pass
             time.sleep(0.05)
         raise UserError("the virtual rig shows no gauge reading (is the gauge hooked?)")
+
+
+def gauge_scale(board, zero_n=None, span_n=None):
+    """(N at code 0, N over full scale) of the gauge's analog output: options first, else the
+    simulated board's gauge (fraction = zero_fraction + N / n_per_fraction)."""
+    g = (board.get("actuator") or {}).get("gauge") or {}
+    if zero_n is None and "zero_fraction" in g:
+        zero_n = -float(g["zero_fraction"]) * float(g["n_per_fraction"])
+    if span_n is None and "n_per_fraction" in g:
+        span_n = float(g["n_per_fraction"])
+    if zero_n is None or span_n is None:
+        return None
+    return float(zero_n), float(span_n)
 
 
 def reference_scale(board, zero_mm=None, span_mm=None):
