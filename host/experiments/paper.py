@@ -57,6 +57,9 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     t0 = time.monotonic()
     timings = {}
     results = {"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port}
+    block = (session.board.get("actuator") or {}).get("block") or {}
+    results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
+    results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]
     from host.commands.fit import DEFAULT_ORDER
 
     order = opts.order if opts.order is not None else DEFAULT_ORDER.get(opts.model)

@@ -53,8 +53,9 @@ def write(out_dir, r, opts, command=None):
         add("")
     add("**Shortened from the paper** (to keep the run to a few minutes): %d force identification rounds per gauge "
         "side (paper 5), %d displacement targets (%s mm; the paper's run to 60 mm, the firmware's soft stroke limits "
-        "keep the block 0.5 mm off the end stops), one sweep per pot." % (
-            opts.rounds, len(r["fig7"]["after"]), ", ".join("%g" % t["target"] for t in r["fig7"]["after"])))
+        "at %s and %s mm keep the block off the end stops), one sweep per pot." % (
+            opts.rounds, len(r["fig7"]["after"]), ", ".join("%g" % t["target"] for t in r["fig7"]["after"]),
+            _f(r.get("stroke_mm", (None, None))[0], 1), _f(r.get("stroke_mm", (None, None))[1], 1)))
     add("")
     m = r.get("method", {})
     add("**Method.** Pot model: %s -> pot 1 %s, pot 2 %s. Df order: %s. Force: order %s, gauge side(s) %s, "
@@ -172,7 +173,7 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("Without the Df correction the firmware's deformation includes Df(D1), which reaches the 5 N target deformation "
         "part-way, and the block stops there (paper: 43.1 mm). With it the block runs on toward the 60 mm end, where "
-        "the firmware's soft stroke limit (59.5 mm) stops it.")
+        "the firmware's soft stroke limit (%s mm) stops it." % _f(r.get("stroke_mm", (None, None))[1], 1))
     add("")
     add("![Fig. 8](fig8.png)")
     add("")
@@ -200,8 +201,10 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("Steady-state error = (gauge - target) / |target|; estimation error = (firmware estimate - gauge) / |gauge|. "
         "The gauge was tared with the fibre slack just before each sequence. The block slides on its slider between "
-        "the spring and the fibre: its Coulomb friction (0.3 N in the simulated actuator, 6 %% of 5 N) makes the "
+        "the spring and the fibre: its Coulomb friction%s makes the "
         "gauge read the spring force minus the friction in the direction the block last slid. %s" % (
+            " (%s N in the simulated actuator's file, %.0f %% of 5 N)" % (_f(r["sim_block_friction_n"], 2), 20 * r["sim_block_friction_n"])
+            if r.get("sim_block_friction_n") is not None else "",
             "The force calibration identified it (%s N) and the firmware compensates it: its estimate is the spring "
             "force through a play operator of that width, and the loop drives the spring to the edge of the band "
             "from which the load's force reaches the target (firmware/measurement.py)." % _f(r["force_fit"].get("friction_n"))
