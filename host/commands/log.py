@@ -26,7 +26,7 @@ def run(args):
         sys.stderr.write("\r%8d samples  %7.1f/s  lost frames %d  board drops %d " % (s.samples, s.rate, s.lost_frames, s.board_dropped))
         sys.stderr.flush()
 
-    with open_board(args.port, args.board, args.calibration) as board:
+    with open_board(args.port, args.board, args.calibration, args.load) as board:
         try:
             summary = record(board, args.out, args.seconds, args.rate, progress=progress)
         except KeyboardInterrupt:

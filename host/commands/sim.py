@@ -2,7 +2,7 @@
 
 import time
 
-from host.virtual_board import DEFAULT_BOARD, VirtualBoard
+from host.virtual_board import DEFAULT_BOARD, LOAD_HELP, VirtualBoard, parse_load
 
 
 def add_parser(subparsers):
@@ -13,11 +13,12 @@ def add_parser(subparsers):
     p.add_argument("--board", default=str(DEFAULT_BOARD), help="board file (default boards/sim.json)")
     p.add_argument("--calibration", default=None, help="calibration.json to put on the virtual board's flash")
     p.add_argument("--root", default=None, help="directory to use as the board's flash (default: a temp dir)")
+    p.add_argument("--load", type=parse_load, default=None, metavar="none|gauge[@MM]|constant:N", help=LOAD_HELP)
     p.set_defaults(func=run)
 
 
 def run(args):
-    board = VirtualBoard(board=args.board, calibration=args.calibration, root=args.root)
+    board = VirtualBoard(board=args.board, calibration=args.calibration, root=args.root, load=args.load)
     path = board.start()
     print(path, flush=True)
     print("virtual board running (flash in %s); Ctrl-C to stop" % board.root, flush=True)
