@@ -9,6 +9,7 @@ import pytest
 
 from boards.sim import bench_rig, machine
 from host import cli
+from host.telemetry_log import load
 from host.virtual_board import parse_load
 from micropython_runner import REPO
 
@@ -85,3 +86,13 @@ def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, c
     assert final.startswith("error: force did not settle: ") and "(target -5.000 N)" in final
     assert "at the 0 mm stroke end: nothing to push against? hook a load (--port sim: --load gauge)" in final
     assert sum("did not settle" in line for line in lines) == 1
+
+
+def test_log_and_plot_from_a_calibrated_board_warn_of_nothing(calibration, tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    assert cli.main(["log", "--port", "sim", "--calibration", calibration, "--out", str(out), "--seconds", "0.5", "--rate", "100"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    data = load(out)
+    assert len(data["t_us"]) > 20 and abs(data["d2_um"].mean() - 30000) < 1000  # the block boots at 30 mm
+    assert cli.main(["plot", str(out)]) == 0
+    assert capsys.readouterr().err == "" and out.with_suffix(".png").stat().st_size > 10000

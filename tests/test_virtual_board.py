@@ -85,12 +85,24 @@ def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
 
 
 def test_cli_log_and_plot(vboard, tmp_path, capsys):
+    # vboard has no calibration: both commands say once that positions and force are 0, and the
+    # raw ADC codes are kept (logged, and plotted in their place).
     out = tmp_path / "cli.csv"
     assert cli.main(["log", "--port", vboard.path, "--out", str(out), "--seconds", "1", "--rate", "200"]) == 0
-    printed = capsys.readouterr().out
-    assert "lost frames 0" in printed
-    assert 150 <= len(load(out)["t_us"]) <= 260
+    printed = capsys.readouterr()
+    assert "lost frames 0" in printed.out
+    warnings = [line for line in printed.err.split("\n") if "warning" in line]
+    assert len(warnings) == 1 and warnings[0].startswith("warning: the board has no usable calibration (")
+    assert "d1_um, d2_um, defl_um, force_mN will be 0; the raw ADC codes (raw1, raw2, raw_ref) are logged" in warnings[0]
+    data = load(out)
+    assert 150 <= len(data["t_us"]) <= 260
+    assert not data["d2_um"].any() and not data["force_mN"].any()
+    assert data["raw1"].min() > 0 and data["raw2"].min() > 0 and data["raw_ref"].min() > 0
     assert cli.main(["plot", str(out), "--out", str(tmp_path / "cli.png")]) == 0
+    printed = capsys.readouterr()
+    assert printed.out.strip() == str(tmp_path / "cli.png")
+    assert printed.err.count("\n") == 1 and printed.err.startswith("warning: %s: d1_um, d2_um, defl_um, force_mN are all 0" % out)
+    assert "plotting the raw ADC codes (raw1, raw2, raw_ref) instead" in printed.err
     assert (tmp_path / "cli.png").stat().st_size > 10000
 
 
