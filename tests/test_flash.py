@@ -91,8 +91,11 @@ def gauge_display(board, after, timeout=3.0):
 def test_force_on_the_flashed_board_pulls_the_hooked_gauge_to_the_target(flashed, capsys):
     # As on the paper's bench: move the block above the anchor, hook the gauge (the fibre hangs
     # slack: tare), then pull -5 N with the force loop. The gauge must then show 5 N of tension
-    # (less the tare), within the block's 0.3 N Coulomb friction and the 0.1 N settle tolerance.
+    # (less the tare) within what the block's Coulomb friction h allows: the block at rest takes up
+    # to h of the spring's force, and the firmware's friction model may put the spring on either
+    # edge of the 2h band around the target, so 2h plus the 0.1 N settle tolerance.
     board, _ = flashed
+    h = json.loads(board.board_path.read_text())["actuator"]["block"]["coulomb_n"]
     assert cli.main(["move", "--port", board.path, "--to", "45", "--timeout", "20"]) == 0
     try:
         board.set_load({"kind": "gauge", "anchor_mm": 43.0})
@@ -107,7 +110,7 @@ def test_force_on_the_flashed_board_pulls_the_hooked_gauge_to_the_target(flashed
         assert out.startswith("reached at ") and abs(float(out.split()[2]) + 5.0) <= 0.1
         tension = gauge_display(board, done) - tare  # force mode still holds (--hold)
         print("gauge tension", tension, "tare", tare)
-        assert abs(tension - 5.0) <= 0.5, (tension, tare)
+        assert abs(tension - 5.0) <= 2 * h + 0.1, (tension, tare)
     finally:
         board.set_load({"kind": "none"})
         with BoardClient(board.path) as client:
