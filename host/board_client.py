@@ -225,12 +225,12 @@ class open_board:
 
 def add_port_arguments(parser):
     """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
-    from host.virtual_board import LOAD_HELP, parse_load
+    from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
     parser.add_argument("--port", required=True, help="serial port of the board (e.g. /dev/ttyACM0), or 'sim' for a virtual board started for this command")
     parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
     parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
-    parser.add_argument("--load", type=parse_load, default=None, metavar="none|gauge[@MM]|constant:N",
+    parser.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
                         help="for --port sim: " + LOAD_HELP)
 
 

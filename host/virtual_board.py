@@ -99,13 +99,16 @@ def install_factory(root, board_path, calibration=None):
 
 
 LOAD_HELP = ("load on the output block of the virtual board, as hooked on a bench: none (default: the block "
-             "runs free, so force control drives it toward a stroke end), gauge[@MM] (a force gauge on a fibre "
-             "that goes taut below MM, default the board file's anchor, 45 mm on boards/sim.json; negative "
-             "force targets pull against it), or constant:N (N newtons on the block, + toward 60 mm)")
+             "runs free, so force control drives it toward a stroke end), gauge[@MM] (a force gauge on the 60 mm "
+             "side, its fibre taut below MM, default the board file's anchor, 45 mm on boards/sim.json; negative "
+             "force targets pull against it), gauge-low[@MM] (the gauge on the 0 mm side, taut above MM; positive "
+             "targets pull against it), or constant:N (N newtons on the block, + toward 60 mm)")
+LOAD_METAVAR = "none|gauge[@MM]|gauge-low[@MM]|constant:N"
+_GAUGE_SIDES = {"gauge": "high", "gauge-low": "low"}
 
 
 def parse_load(text):
-    """`none`, `gauge`, `gauge@MM` or `constant:N` -> the rig.json load dict (bench_rig.apply)."""
+    """`none`, `gauge[@MM]`, `gauge-low[@MM]` or `constant:N` -> the rig.json load dict (bench_rig.apply)."""
     text = str(text).strip()
     kind, sep, value = text.partition("@") if text.startswith("gauge") else text.partition(":")
     try:
@@ -115,11 +118,15 @@ def parse_load(text):
     if number is None or math.isfinite(number):
         if kind == "none" and not sep:
             return {"kind": "none"}
-        if kind == "gauge":
-            return {"kind": "gauge", "anchor_mm": number} if sep else {"kind": "gauge"}
+        if kind in _GAUGE_SIDES:
+            load = {"kind": "gauge", "side": _GAUGE_SIDES[kind]}
+            if sep:
+                load["anchor_mm"] = number
+            return load
         if kind == "constant" and sep:
             return {"kind": "constant", "force_n": number}
-    raise argparse.ArgumentTypeError("load must be none, gauge, gauge@MM or constant:N (e.g. gauge@45, constant:-2.5), not %r" % text)
+    raise argparse.ArgumentTypeError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (e.g. gauge@45, "
+                                     "constant:-2.5), not %r" % text)
 
 
 def _set_pty_mode(fd):

@@ -4,6 +4,7 @@ a stroke end). The real unix port, firmware, pty and pyserial, through the host 
 
 import argparse
 import json
+import re
 
 import pytest
 
@@ -27,11 +28,12 @@ def calibration(tmp_path_factory):
 
 def test_parse_load_takes_the_documented_forms_and_refuses_the_rest():
     assert parse_load("none") == {"kind": "none"}
-    assert parse_load("gauge") == {"kind": "gauge"}  # anchored where the board file says
-    assert parse_load("gauge@40.5") == {"kind": "gauge", "anchor_mm": 40.5}
+    assert parse_load("gauge") == {"kind": "gauge", "side": "high"}  # anchored where the board file says
+    assert parse_load("gauge@40.5") == {"kind": "gauge", "side": "high", "anchor_mm": 40.5}
+    assert parse_load("gauge-low@20") == {"kind": "gauge", "side": "low", "anchor_mm": 20.0}
     assert parse_load("constant:-2.5") == {"kind": "constant", "force_n": -2.5}
-    for bad in ("", "gauge@", "gauge@x", "gauge:40", "constant", "constant:", "constant:nan", "none:1", "spring", "gaugex"):
-        with pytest.raises(argparse.ArgumentTypeError, match="load must be none, gauge, gauge@MM or constant:N"):
+    for bad in ("", "gauge@", "gauge@x", "gauge:40", "constant", "constant:", "constant:nan", "none:1", "spring", "gaugex", "gauge-high"):
+        with pytest.raises(argparse.ArgumentTypeError, match=re.escape("load must be none, gauge[@MM], gauge-low[@MM] or constant:N")):
             parse_load(bad)
 
 
@@ -56,7 +58,7 @@ def test_bad_load_is_refused_by_the_parser(capsys):
     with pytest.raises(SystemExit) as exc:
         cli.main(["force", "--port", "sim", "--load", "spring", "--target", "-5"])
     assert exc.value.code == 2
-    assert "load must be none, gauge, gauge@MM or constant:N" in capsys.readouterr().err
+    assert "load must be none, gauge[@MM], gauge-low[@MM] or constant:N" in capsys.readouterr().err
 
 
 def test_help_of_sim_and_force_tells_how_to_hook_a_load(capsys):
@@ -64,7 +66,7 @@ def test_help_of_sim_and_force_tells_how_to_hook_a_load(capsys):
         with pytest.raises(SystemExit):
             cli.main([command, "--help"])
         text = " ".join(capsys.readouterr().out.split())
-        assert "--load none|gauge[@MM]|constant:N" in text and "force gauge" in text
+        assert "--load none|gauge[@MM]|gauge-low[@MM]|constant:N" in text and "force gauge" in text
 
 
 def test_force_on_port_sim_with_the_gauge_settles_on_the_target(calibration, capsys):
@@ -73,6 +75,13 @@ def test_force_on_port_sim_with_the_gauge_settles_on_the_target(calibration, cap
     assert code == 0, out
     assert out.startswith("reached at ")
     assert abs(float(out.split()[2]) + 5.0) <= 0.1  # the firmware's F0(d), mean of the last 0.1 s
+
+
+def test_positive_force_on_port_sim_settles_against_a_gauge_on_the_low_side(calibration, capsys):
+    code = cli.main(["force", "--port", "sim", "--load", "gauge-low@20", "--calibration", calibration, "--target", "5"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert abs(float(out.split()[2]) - 5.0) <= 0.1
 
 
 def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, capsys):

@@ -255,7 +255,7 @@ def test_host_sim_cleans_up_on_sigterm_and_sighup_as_on_ctrl_c(stop_signal):
         path = proc.stdout.readline().strip()
         root = proc.stdout.readline().split("(flash in ")[1].split(")")[0]
         assert path.startswith("/dev/pts/") and Path(root).name.startswith("lsea-vboard-")
-        assert json.loads((Path(root) / "rig.json").read_text())["load"] == {"kind": "gauge", "anchor_mm": 25.0}
+        assert json.loads((Path(root) / "rig.json").read_text())["load"] == {"kind": "gauge", "side": "high", "anchor_mm": 25.0}
         with BoardClient(path) as board:
             assert board.status_info["board"] == "sim"
         assert processes_mentioning(root)  # its micropython runs

@@ -2,7 +2,7 @@
 
 from host.errors import UserError
 from host.flashing import flash
-from host.virtual_board import LOAD_HELP, parse_load
+from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
 
 def add_parser(subparsers):
@@ -13,7 +13,7 @@ def add_parser(subparsers):
     p.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyACM0), or 'sim' for a throwaway virtual board")
     p.add_argument("--board", default="sim", help="board name in boards/ or a board file path (default sim)")
     p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
-    p.add_argument("--load", type=parse_load, default=None, metavar="none|gauge[@MM]|constant:N",
+    p.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
                    help="for --port sim: " + LOAD_HELP)
     p.set_defaults(func=run)
 

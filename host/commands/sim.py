@@ -3,7 +3,7 @@
 import signal
 import time
 
-from host.virtual_board import DEFAULT_BOARD, LOAD_HELP, VirtualBoard, parse_load
+from host.virtual_board import DEFAULT_BOARD, LOAD_HELP, LOAD_METAVAR, VirtualBoard, parse_load
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -21,7 +21,7 @@ def add_parser(subparsers):
     p.add_argument("--board", default=str(DEFAULT_BOARD), help="board file (default boards/sim.json)")
     p.add_argument("--calibration", default=None, help="calibration.json to put on the virtual board's flash")
     p.add_argument("--root", default=None, help="directory to use as the board's flash (default: a temp dir, removed at the end)")
-    p.add_argument("--load", type=parse_load, default=None, metavar="none|gauge[@MM]|constant:N", help=LOAD_HELP)
+    p.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR, help=LOAD_HELP)
     p.set_defaults(func=run)
 
 
