@@ -30,6 +30,8 @@ CRC_BYTES = 4
 MAX_PAYLOAD = 1024  # bounds how long a corrupted length field can hold up the decoder
 SEQ_MASK = 0xFFFF
 MAX_LINE = 200  # longest command line the board accepts (its preallocated line buffer)
+TOKEN_MIN = 0x21  # the bytes a command word may hold: printable ASCII, no space, so no Ctrl-C/D
+TOKEN_MAX = 0x7E
 TELEMETRY_BATCH = 16  # most records in one telemetry frame
 
 # Frame types: (number, name, payload description)
@@ -50,8 +52,9 @@ FRAME_TYPES = (
 )
 TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
 
-# Commands: (name, argument names, result, what it does). Arguments are ASCII tokens;
-# integers are decimal. `int` arguments must fit +-2**30 (the board's small-int range).
+# Commands: (name, argument names, result, what it does). Arguments are printable ASCII tokens
+# (TOKEN_MIN..TOKEN_MAX; format_command refuses anything else); integers are decimal. `int`
+# arguments must fit +-2**30 (the board's small-int range).
 COMMANDS = (
     ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, timer, last_exit, protocol",
      "identify the firmware and report its state (the handshake)"),
@@ -78,10 +81,40 @@ def crc32(data):
     return binascii.crc32(data) & 0xFFFFFFFF
 
 
+def _token_problem(token):
+    """Why `token` cannot be one word of a command line, or None when it can."""
+    if not token:
+        return "is empty"
+    for c in token:
+        n = ord(c)
+        if n == 3 or n == 4:
+            return "contains Ctrl-%s (0x%02x), which would break into the board's REPL" % ("C" if n == 3 else "D", n)
+        if n > TOKEN_MAX:
+            return "is not ASCII" if n > 0x7F else "contains a control character (0x7f)"
+        if n == 0x20 or c.isspace():
+            return "contains whitespace (0x%02x), which would split it in two" % n
+        if n < TOKEN_MIN:
+            return "contains a control character (0x%02x)" % n
+    return None
+
+
 def format_command(seq, name, *args):
-    """The bytes of one command line (host side)."""
-    text = "!%d %s" % (seq & SEQ_MASK, " ".join([name] + [str(a) for a in args]))
-    return ("%s *%08x\n" % (text, crc32(text.encode()))).encode()
+    """The bytes of one command line (host side).
+
+    Every word (the command and each str(arg)) must be printable ASCII without spaces
+    (TOKEN_MIN..TOKEN_MAX), so a line never carries Ctrl-C/Ctrl-D to the REPL and parses back to
+    the same words; anything else, or a line longer than MAX_LINE, raises ValueError."""
+    words = [str(name)] + [str(a) for a in args]
+    for i, word in enumerate(words):
+        why = _token_problem(word)
+        if why:
+            what = "command name" if i == 0 else "argument %d of %s" % (i, words[0][:24])
+            raise ValueError("%s %r %s: command words must be printable ASCII without spaces" % (what, word[:40], why))
+    text = "!%d %s" % (seq & SEQ_MASK, " ".join(words))
+    line = ("%s *%08x\n" % (text, crc32(text.encode()))).encode()
+    if len(line) - 1 > MAX_LINE:
+        raise ValueError("command line of %d bytes is longer than the board's %d" % (len(line) - 1, MAX_LINE))
+    return line
 
 
 def parse_command(line):

@@ -184,12 +184,14 @@ class BoardClient:
 
 
 class open_board:
-    """Context manager: a BoardClient on `port`; `port == "sim"` starts a virtual board first."""
+    """Context manager: a BoardClient on `port`; `port == "sim"` starts a virtual board first,
+    with `load` (a host.virtual_board.parse_load dict) hooked on its block."""
 
-    def __init__(self, port, board=None, calibration=None, **client_options):
+    def __init__(self, port, board=None, calibration=None, load=None, **client_options):
         self.port = port
         self.board = board
         self.calibration = calibration
+        self.load = load
         self.options = client_options
         self.virtual = None
         self.client = None
@@ -199,8 +201,11 @@ class open_board:
         if port == "sim":
             from host.virtual_board import DEFAULT_BOARD, VirtualBoard
 
-            self.virtual = VirtualBoard(board=self.board or DEFAULT_BOARD, calibration=self.calibration)
+            self.virtual = VirtualBoard(board=self.board or DEFAULT_BOARD, calibration=self.calibration, load=self.load)
             port = self.virtual.start()
+        elif self.load is not None:
+            raise UserError("--load only applies to --port sim (on a bench, hook the load by hand; "
+                            "for a running host sim, start it with --load)")
         try:
             self.client = BoardClient(port, **self.options)
         except BaseException:
@@ -219,15 +224,20 @@ class open_board:
 
 
 def add_port_arguments(parser):
-    """--port (and --board/--calibration for `--port sim`) shared by the board commands."""
+    """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
+    from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
+
     parser.add_argument("--port", required=True, help="serial port of the board (e.g. /dev/ttyACM0), or 'sim' for a virtual board started for this command")
     parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
     parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
+    parser.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
+                        help="for --port sim: " + LOAD_HELP)
 
 
-def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, window=10):
+def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, window=10, last=None):
     """Run `mode` towards `target` until telemetry `field` stays within `tolerance` of it for
     `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away.
+    `last`, a dict, receives the newest record (field name -> int), e.g. to say where it ended.
 
     The value judged is the mean of the last `window` records (0.1 s at the 100 Hz stream): a
     single reading carries the pots' noise, which near a knee (where one code spans ~3x more
@@ -245,7 +255,10 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
         while time.monotonic() - start < timeout_s:
             board.heartbeat_if_due()
             for frame in board.frames(timeout=0.05):
-                recent.extend(int(v) for v in frame.records()[:, index])
+                rows = frame.records()
+                recent.extend(int(v) for v in rows[:, index])
+                if last is not None and len(rows):
+                    last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
             if not recent:
                 continue
             del recent[:-window]

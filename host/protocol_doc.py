@@ -32,6 +32,10 @@ def render():
         "- `seq`: decimal, 0..%d, chosen by the host; the reply frame carries it back." % (P.SEQ_MASK - 1),
         "- `crc32`: 8 lowercase hex digits, `binascii.crc32` of the text before ` *`.",
         "- at most %d bytes; CR, LF or CRLF ends a line." % P.MAX_LINE,
+        "- the command and each argument are words of printable ASCII without spaces (0x%02x-0x%02x);"
+        % (P.TOKEN_MIN, P.TOKEN_MAX),
+        "  `format_command` refuses any other word (control characters such as Ctrl-C/Ctrl-D,",
+        "  whitespace, non-ASCII, empty) and any line longer than the board accepts, before sending.",
         "- every line gets exactly one reply frame; a line the board cannot attribute (bad format,",
         "  too long) gets an error frame with seq %d." % P.SEQ_MASK,
         "- the same line sent again (a retry after a timeout) gets the cached reply, and the command",

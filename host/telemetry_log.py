@@ -11,6 +11,9 @@ from dataclasses import dataclass
 
 from firmware.telemetry import FIELDS
 
+# What the firmware computes from the calibration; all 0 in records from a board without one.
+CALIBRATED_FIELDS = ("d1_um", "d2_um", "defl_um", "force_mN")
+
 
 @dataclass
 class LogSummary:
@@ -80,3 +83,8 @@ def load(path):
     with open(path) as fh:
         header = fh.readline().strip().split(",")
     return {name: data[:, i] for i, name in enumerate(header)}
+
+
+def uncalibrated(data):
+    """Whether a loaded run (load()) has only zeros where calibrated values belong."""
+    return all(not data[name].any() for name in CALIBRATED_FIELDS if name in data)

@@ -7,14 +7,20 @@ raises KeyboardInterrupt as on a board, and the raw REPL works). The board's fla
 of its own (`root`), mounted as "/" inside MicroPython (VfsPosix), holding main.py, firmware/,
 board.json and calibration.json.
 
+A load on the output block (`load=`, e.g. `parse_load("gauge@45")`) is what a person hooks on a
+bench: the board writes it to `rig.json` in its root, where boards/sim/bench_rig.py applies it to
+the simulated world at boot and within ~100 ms of a change (`set_load`).
+
 Where a board soft-resets, the unix port exits; the relay then prints "MPY: soft reboot" and starts
 micropython again: into the raw REPL when the reset came from the raw REPL (as a board does, which
 is what mpremote expects), else booting main.py. Output nobody reads is dropped, as a USB CDC port
 with no host attached does, so the firmware never blocks on a missing client.
 """
 
+import argparse
 import fcntl
 import json
+import math
 import os
 import select
 import shutil
@@ -92,6 +98,37 @@ def install_factory(root, board_path, calibration=None):
     (root / "main.py").write_text(MAIN_PY)
 
 
+LOAD_HELP = ("load on the output block of the virtual board, as hooked on a bench: none (default: the block "
+             "runs free, so force control drives it toward a stroke end), gauge[@MM] (a force gauge on the 60 mm "
+             "side, its fibre taut below MM, default the board file's anchor, 45 mm on boards/sim.json; negative "
+             "force targets pull against it), gauge-low[@MM] (the gauge on the 0 mm side, taut above MM; positive "
+             "targets pull against it), or constant:N (N newtons on the block, + toward 60 mm)")
+LOAD_METAVAR = "none|gauge[@MM]|gauge-low[@MM]|constant:N"
+_GAUGE_SIDES = {"gauge": "high", "gauge-low": "low"}
+
+
+def parse_load(text):
+    """`none`, `gauge[@MM]`, `gauge-low[@MM]` or `constant:N` -> the rig.json load dict (bench_rig.apply)."""
+    text = str(text).strip()
+    kind, sep, value = text.partition("@") if text.startswith("gauge") else text.partition(":")
+    try:
+        number = float(value) if sep else None
+    except ValueError:
+        number = math.nan
+    if number is None or math.isfinite(number):
+        if kind == "none" and not sep:
+            return {"kind": "none"}
+        if kind in _GAUGE_SIDES:
+            load = {"kind": "gauge", "side": _GAUGE_SIDES[kind]}
+            if sep:
+                load["anchor_mm"] = number
+            return load
+        if kind == "constant" and sep:
+            return {"kind": "constant", "force_n": number}
+    raise argparse.ArgumentTypeError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (e.g. gauge@45, "
+                                     "constant:-2.5), not %r" % text)
+
+
 def _set_pty_mode(fd):
     """Raw bytes both ways (no CR/LF translation, no echo) but Ctrl-C still raises SIGINT."""
     tty.setraw(fd)
@@ -103,7 +140,7 @@ def _set_pty_mode(fd):
 class VirtualBoard:
     """A simulated board on a pseudo-terminal. Use as a context manager or start()/stop()."""
 
-    def __init__(self, board=DEFAULT_BOARD, calibration=None, root=None, factory=True, log=None):
+    def __init__(self, board=DEFAULT_BOARD, calibration=None, root=None, factory=True, log=None, load=None):
         self.board_path = Path(board)
         if not self.board_path.is_file():
             raise UserError("board file not found: %s" % board)
@@ -112,6 +149,7 @@ class VirtualBoard:
         self.root = Path(root) if root else Path(tempfile.mkdtemp(prefix="lsea-vboard-"))
         self.factory = factory
         self.log = log
+        self.load = load  # None: leave the rig as it is (the board file's: no load)
         self.path = None
         self.boots = 0
         self.dropped_bytes = 0
@@ -129,6 +167,8 @@ class VirtualBoard:
     def start(self):
         if self.factory:
             install_factory(self.root, self.board_path, self.calibration)
+        if self.load is not None:
+            self.set_load(self.load)  # in place before main.py boots: the world starts with it
         self._master, self._slave = os.openpty()
         _set_pty_mode(self._slave)
         fl = fcntl.fcntl(self._master, fcntl.F_GETFL)
@@ -153,6 +193,20 @@ class VirtualBoard:
         self._master = self._slave = None
         if self._own_root:
             shutil.rmtree(self.root, ignore_errors=True)
+
+    def set_load(self, load):
+        """Hook a load on the block (a parse_load dict): rewrites rig.json atomically, keeping its
+        other entries; the running firmware's rig applies it within ~100 ms."""
+        rig_path = self.root / "rig.json"
+        try:
+            rig = json.loads(rig_path.read_text())
+        except (OSError, ValueError):
+            rig = {}
+        rig["load"] = dict(load)
+        tmp = self.root / "rig.json.tmp"
+        tmp.write_text(json.dumps(rig))
+        os.replace(tmp, rig_path)
+        self.load = dict(load)
 
     def __enter__(self):
         self.start()

@@ -1,9 +1,11 @@
 """The frame format and command lines: encoder/decoder agreement, resync, and fuzzing."""
 
 import random
+import re
 import struct
 import zlib
 
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -59,6 +61,58 @@ def test_command_lines_round_trip_and_never_contain_ctrl_c_or_ctrl_d():
         line = P.format_command(seq, name, *args)
         assert 3 not in line and 4 not in line and line.endswith(b"\n")
         assert P.parse_command(line.rstrip(b"\n")) == (seq, name, [str(a) for a in args])
+
+
+def test_format_command_refuses_words_that_would_break_the_line_or_reach_the_repl():
+    cases = [
+        ("a\x03b", "Ctrl-C (0x03), which would break into the board's REPL"),
+        ("\x04", "Ctrl-D (0x04), which would break into the board's REPL"),
+        ("kp pos", "whitespace (0x20)"),
+        ("on\n", "whitespace (0x0a)"),
+        ("x\ty", "whitespace (0x09)"),
+        ("\x00", "control character (0x00)"),
+        ("\x1b[A", "control character (0x1b)"),
+        ("\x7f", "control character (0x7f)"),
+        ("caf\u00e9", "is not ASCII"),
+        ("\u2003", "is not ASCII"),
+        ("", "is empty"),
+    ]
+    for word, why in cases:
+        with pytest.raises(ValueError, match="argument 1 of set .*" + re.escape(why)):
+            P.format_command(1, "set", word, 5)
+    with pytest.raises(ValueError, match="command name 'sta tus' contains whitespace"):
+        P.format_command(1, "sta tus")
+    with pytest.raises(ValueError, match="longer than the board's 200"):
+        P.format_command(1, "set", "p" * 200, 1)
+    assert P.format_command(1, "set", "p" * 170, 1)  # long but within MAX_LINE: sent
+
+
+@settings(max_examples=500, deadline=None)
+@given(
+    st.integers(min_value=0, max_value=P.SEQ_MASK - 1),
+    st.sampled_from(P.COMMAND_NAMES),
+    st.lists(st.one_of(st.text(max_size=20), st.integers(min_value=-(2**40), max_value=2**40), st.floats()), max_size=3),
+)
+def test_every_formatted_line_is_printable_ascii_or_refused(seq, name, args):
+    try:
+        line = P.format_command(seq, name, *args)
+    except ValueError:
+        # refused: some word really holds a byte outside printable ASCII, or the line is too long
+        words = [name] + [str(a) for a in args]
+        assert any(not w or any(not 0x21 <= ord(c) <= 0x7E for c in w) for w in words) or \
+            len("!%d %s" % (seq, " ".join(words))) + 10 > P.MAX_LINE
+        return
+    assert line.endswith(b"\n")
+    body = line[:-1]
+    assert all(0x20 <= b <= 0x7E for b in body)  # printable ASCII: no Ctrl-C, no Ctrl-D, no CR/LF
+    assert 3 not in line and 4 not in line and len(body) <= P.MAX_LINE
+    # ... and the board reads back exactly the words that were sent (arity aside)
+    try:
+        got = P.parse_command(body)
+    except P.ProtocolError as exc:
+        assert exc.args[1].startswith(name + " takes ")
+    else:
+        assert got == (seq, name, [str(a) for a in args])
 
 
 def test_parse_rejects_a_single_flipped_character():

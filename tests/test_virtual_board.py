@@ -85,12 +85,24 @@ def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
 
 
 def test_cli_log_and_plot(vboard, tmp_path, capsys):
+    # vboard has no calibration: both commands say once that positions and force are 0, and the
+    # raw ADC codes are kept (logged, and plotted in their place).
     out = tmp_path / "cli.csv"
     assert cli.main(["log", "--port", vboard.path, "--out", str(out), "--seconds", "1", "--rate", "200"]) == 0
-    printed = capsys.readouterr().out
-    assert "lost frames 0" in printed
-    assert 150 <= len(load(out)["t_us"]) <= 260
+    printed = capsys.readouterr()
+    assert "lost frames 0" in printed.out
+    warnings = [line for line in printed.err.split("\n") if "warning" in line]
+    assert len(warnings) == 1 and warnings[0].startswith("warning: the board has no usable calibration (")
+    assert "d1_um, d2_um, defl_um, force_mN will be 0; the raw ADC codes (raw1, raw2, raw_ref) are logged" in warnings[0]
+    data = load(out)
+    assert 150 <= len(data["t_us"]) <= 260
+    assert not data["d2_um"].any() and not data["force_mN"].any()
+    assert data["raw1"].min() > 0 and data["raw2"].min() > 0 and data["raw_ref"].min() > 0
     assert cli.main(["plot", str(out), "--out", str(tmp_path / "cli.png")]) == 0
+    printed = capsys.readouterr()
+    assert printed.out.strip() == str(tmp_path / "cli.png")
+    assert printed.err.count("\n") == 1 and printed.err.startswith("warning: %s: d1_um, d2_um, defl_um, force_mN are all 0" % out)
+    assert "plotting the raw ADC codes (raw1, raw2, raw_ref) instead" in printed.err
     assert (tmp_path / "cli.png").stat().st_size > 10000
 
 
@@ -221,6 +233,40 @@ def test_host_sim_prints_a_port_that_answers_and_stops_on_ctrl_c():
         assert proc.wait(timeout=10) == 0
 
 
+def processes_mentioning(text):
+    """pids whose command line contains `text` (the virtual board's micropython names its root)."""
+    found = []
+    for cmdline in __import__("pathlib").Path("/proc").glob("[0-9]*/cmdline"):
+        try:
+            if text.encode() in cmdline.read_bytes():
+                found.append(int(cmdline.parent.name))
+        except OSError:
+            pass
+    return found
+
+
+@pytest.mark.parametrize("stop_signal", ["SIGTERM", "SIGHUP"])
+def test_host_sim_cleans_up_on_sigterm_and_sighup_as_on_ctrl_c(stop_signal):
+    import signal
+    from pathlib import Path
+
+    proc = subprocess.Popen([sys.executable, "-m", "host", "sim", "--load", "gauge@25"], stdout=subprocess.PIPE, text=True)
+    try:
+        path = proc.stdout.readline().strip()
+        root = proc.stdout.readline().split("(flash in ")[1].split(")")[0]
+        assert path.startswith("/dev/pts/") and Path(root).name.startswith("lsea-vboard-")
+        assert json.loads((Path(root) / "rig.json").read_text())["load"] == {"kind": "gauge", "side": "high", "anchor_mm": 25.0}
+        with BoardClient(path) as board:
+            assert board.status_info["board"] == "sim"
+        assert processes_mentioning(root)  # its micropython runs
+    finally:
+        proc.send_signal(getattr(signal, stop_signal))
+        code = proc.wait(timeout=10)
+    assert code == 0
+    assert not Path(root).exists()  # the temporary flash directory is gone ...
+    assert processes_mentioning(root) == []  # ... and so is micropython
+
+
 def test_port_sim_runs_a_command_on_a_throwaway_board(capsys):
     assert cli.main(["status", "--port", "sim"]) == 0
     out = capsys.readouterr().out
@@ -245,3 +291,134 @@ def test_log_ctrl_c_ends_with_a_complete_file_and_a_summary(vboard, tmp_path):
     t = load(out)["t_us"]
     assert len(t) > 200 and set(np.diff(t)) == {2000}
     assert "%d samples" % len(t) in stdout
+
+
+class ReplyMangler:
+    """A relay on a pty of its own between a client and the virtual board that drops or corrupts
+    the first reply frame to one armed command, and passes every other byte unchanged."""
+
+    def __init__(self, board_path):
+        import os
+        import threading
+        import tty
+
+        self.os = os
+        self.master, self.slave = os.openpty()
+        tty.setraw(self.slave)
+        self.path = os.ttyname(self.slave)
+        self.board = os.open(board_path, os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.board)
+        self.armed = None  # (command name, "drop" | "corrupt")
+        self.victim = None  # seq of the armed command's line
+        self.sent = []  # (seq, name) of every command line the client sent
+        self.mangled = []  # the original bytes of each frame dropped or corrupted
+        self._line = b""
+        self._from_board = b""
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def arm(self, name, how):
+        self.armed, self.victim = (name, how), None
+
+    def close(self):
+        self._stop.set()
+        self._thread.join(timeout=5)
+        for fd in (self.master, self.slave, self.board):
+            self.os.close(fd)
+
+    def _client_bytes(self, data):
+        self._line += data
+        while b"\n" in self._line:
+            line, self._line = self._line.split(b"\n", 1)
+            words = line.decode("ascii", "replace").lstrip("!").split()
+            if len(words) >= 2 and words[0].isdigit():
+                seq = int(words[0])
+                self.sent.append((seq, words[1]))
+                if self.armed and words[1] == self.armed[0] and self.victim is None:
+                    self.victim = seq
+        self.os.write(self.board, data)
+
+    def _board_bytes(self, data):
+        buf = self._from_board + data
+        out = b""
+        while True:
+            i = buf.find(P.SYNC)
+            if i < 0:
+                keep = 1 if buf.endswith(P.SYNC[:1]) else 0
+                out, buf = out + buf[: len(buf) - keep], buf[len(buf) - keep :]
+                break
+            out, buf = out + buf[:i], buf[i:]
+            if len(buf) < P.HEADER_BYTES:
+                break
+            ftype, length, seq = buf[2], int.from_bytes(buf[4:8], "little"), int.from_bytes(buf[8:12], "little")
+            if length > P.MAX_PAYLOAD:
+                out, buf = out + buf[:1], buf[1:]
+                continue
+            size = P.HEADER_BYTES + P.padded(length) + P.CRC_BYTES
+            if len(buf) < size:
+                break
+            frame, buf = buf[:size], buf[size:]
+            if self.armed and ftype in (P.T_OK, P.T_ERROR) and seq == self.victim:
+                self.mangled.append(frame)
+                how = self.armed[1]
+                self.armed = None
+                if how == "drop":
+                    continue
+                frame = frame[: P.HEADER_BYTES] + bytes([frame[P.HEADER_BYTES] ^ 0x20]) + frame[P.HEADER_BYTES + 1 :]
+            out += frame
+        self._from_board = buf
+        if out:
+            self.os.write(self.master, out)
+
+    def _run(self):
+        import select
+
+        while not self._stop.is_set():
+            ready, _, _ = select.select([self.master, self.board], [], [], 0.05)
+            for fd in ready:
+                try:
+                    data = self.os.read(fd, 4096)
+                except OSError:
+                    continue
+                if fd == self.master:
+                    self._client_bytes(data)
+                else:
+                    self._board_bytes(data)
+
+
+@pytest.fixture
+def mangler(vboard):
+    relay = ReplyMangler(vboard.path)
+    try:
+        yield relay
+    finally:
+        relay.close()
+
+
+def test_a_lost_reply_is_resent_from_the_firmware_cache_not_run_again(mangler):
+    # status carries the control step counter: a status run again 0.5 s later would count
+    # ~500 more steps; the cached reply repeats the first run's bytes exactly.
+    with BoardClient(mangler.path) as board:
+        mangler.arm("status", "drop")
+        got = board.request("status")
+        fresh = board.request("status")
+    seq = mangler.victim
+    assert [s for s, _ in mangler.sent].count(seq) == 2  # the client resent the same line
+    assert len(mangler.mangled) == 1
+    dropped = FrameDecoder().feed(mangler.mangled[0])[0]
+    assert dropped.seq == seq and dropped.json() == got  # the very answer of the first run ...
+    assert fresh["steps"] > got["steps"]  # ... while the step clock ran on: it ran once
+
+
+def test_a_corrupted_reply_is_rejected_and_the_retry_answers(mangler):
+    with BoardClient(mangler.path) as board:
+        before = board.call("get", "slew")
+        crc_errors = board.decoder.crc_errors
+        mangler.arm("set", "corrupt")
+        assert board.request("set", "slew", before + 23) is None
+        assert board.decoder.crc_errors == crc_errors + 1  # the flipped byte was caught by the CRC
+        assert board.call("get", "slew") == before + 23  # the set took effect
+        board.call("set", "slew", before)
+    assert [s for s, _ in mangler.sent].count(mangler.victim) == 2
+    assert len(mangler.mangled) == 1

@@ -6,8 +6,13 @@ same facts to `rig.json` in the board's filesystem root (the current directory o
 and `poll(world)`, called from `machine.idle()` outside the control step, applies them:
 
     {"reference": "pot1" | "pot2",
-     "load": {"kind": "none" | "gauge", "anchor_mm": 45.0, "side": "high" | "low"},
+     "load": {"kind": "none" | "gauge" | "constant", "anchor_mm": 45.0, "side": "high" | "low",
+              "force_n": 0.0},
      "fault": null | {"channel": "pot1", "kind": "wiper_lift", "rail": "high"}}
+
+(load: anchor_mm where the gauge's fibre goes taut, default the board file's, and the gauge's
+side, see Actuator.set_load; force_n of a constant load, + toward the 60 mm end. `host sim --load`
+and `--port sim --load` write it too.)
 
 While the gauge is hooked, the rig also plays the gauge's display: `gauge.json` holds its reading
 in newtons (from the gauge's own ADC channel: noise, quantisation and zero drift included) and the
@@ -60,7 +65,8 @@ def apply(world, rig):
     load = rig.get("load")
     if load is not None:
         kind = load.get("kind", "none")
-        world.set_load(kind, anchor_mm=load.get("anchor_mm"), side=load.get("side", "high"))
+        world.set_load(kind, anchor_mm=load.get("anchor_mm"), side=load.get("side", "high"),
+                       force_n=float(load.get("force_n", 0.0)))
         _gauge_on = kind == "gauge"
     if "fault" in rig:
         world.clear_faults()

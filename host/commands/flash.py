@@ -2,6 +2,7 @@
 
 from host.errors import UserError
 from host.flashing import flash
+from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
 
 def add_parser(subparsers):
@@ -12,6 +13,8 @@ def add_parser(subparsers):
     p.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyACM0), or 'sim' for a throwaway virtual board")
     p.add_argument("--board", default="sim", help="board name in boards/ or a board file path (default sim)")
     p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
+    p.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
+                   help="for --port sim: " + LOAD_HELP)
     p.set_defaults(func=run)
 
 
@@ -24,8 +27,10 @@ def run(args):
         from host.virtual_board import VirtualBoard
 
         board_path, _ = resolve_board(args.board)
-        with VirtualBoard(board=board_path, factory=False) as vb:
+        with VirtualBoard(board=board_path, factory=False, load=args.load) as vb:
             status = flash(vb.path, args.board, args.calibration, progress=progress)
+    elif args.load is not None:
+        raise UserError("--load only applies to --port sim (on a bench, hook the load by hand)")
     else:
         status = flash(args.port, args.board, args.calibration, progress=progress)
     if status.get("version") is None:

@@ -2,17 +2,36 @@
 
 import sys
 
-from host.board_client import add_port_arguments, open_board, settle
+from host.board_client import BoardError, add_port_arguments, open_board, settle
+from host.errors import UserError
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("force", help="hold a force on the output (closed loop on the spring deformation)")
+    p = subparsers.add_parser("force", help="hold a force on the output (closed loop on the spring deformation)",
+                              description="Hold a force on the output block: closed loop on the spring deformation "
+                              "(F0(d) of the calibration), until the force stays within --tolerance for 0.3 s, then "
+                              "motor off. The block needs something to push against: with nothing on it, force control "
+                              "drives it toward a stroke end and it cannot settle. On --port sim, hook a load with "
+                              "--load (e.g. --load gauge: negative targets pull against a force gauge).")
     add_port_arguments(p)
-    p.add_argument("--target", type=float, required=True, metavar="N", help="target force, newtons")
+    p.add_argument("--target", type=float, required=True, metavar="N", help="target force, newtons (negative pulls the block toward 0 mm)")
     p.add_argument("--tolerance", type=float, default=0.1, metavar="N", help="settled when within this, N (default 0.1)")
     p.add_argument("--timeout", type=float, default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave force mode on at the end (until the host timeout)")
     p.set_defaults(func=run)
+
+
+def _stroke_end(board, d2_um):
+    """'0 mm' or '60 mm' when D2 is inside the soft stroke limit's slow zone at that end, else None."""
+    try:
+        lo, hi, zone = (board.call("get", name) for name in ("stroke_min_um", "stroke_max_um", "slow_zone_um"))
+    except BoardError:  # a firmware without soft stroke limits
+        return None
+    if d2_um <= lo + zone:
+        return "0 mm"
+    if d2_um >= hi - zone:
+        return "60 mm"
+    return None
 
 
 def run(args):
@@ -22,15 +41,22 @@ def run(args):
         sys.stderr.write("\r%6.2f s  F %8.3f N  (target %.3f N)" % (seconds, value / 1000, args.target))
         sys.stderr.flush()
 
-    with open_board(args.port, args.board, args.calibration, require_calibration=True) as board:
+    last = {}
+    with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
         try:
-            ok, value, seconds = settle(board, "force", target, "force_mN", int(args.tolerance * 1000), args.timeout, progress=progress)
+            ok, value, seconds = settle(board, "force", target, "force_mN", int(args.tolerance * 1000), args.timeout,
+                                        progress=progress, last=last)
         finally:
             if not args.hold:
                 board.call("stop")
         sys.stderr.write("\n")
+        end = _stroke_end(board, last["d2_um"]) if last and not ok else None
     if value is None:
-        print("no telemetry from the board", file=sys.stderr)
-        return 1
-    print("%s at %.3f N (target %.3f N) after %.2f s" % ("reached" if ok else "NOT settled", value / 1000, args.target, seconds))
-    return 0 if ok else 1
+        raise UserError("no telemetry from the board during the force run")
+    if not ok:
+        why = ("the block ran to D2 = %.1f mm, at the %s stroke end: nothing to push against? hook a load "
+               "(--port sim: --load gauge)" % (last["d2_um"] / 1000, end)) if end else \
+              "try a longer --timeout or a wider --tolerance"
+        raise UserError("force did not settle: %.3f N after %.1f s (target %.3f N); %s" % (value / 1000, seconds, args.target, why))
+    print("reached at %.3f N (target %.3f N) after %.2f s" % (value / 1000, args.target, seconds))
+    return 0

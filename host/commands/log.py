@@ -4,11 +4,15 @@ import sys
 
 from host.board_client import add_port_arguments, open_board
 from host.errors import UserError
-from host.telemetry_log import record
+from host.telemetry_log import CALIBRATED_FIELDS, record
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("log", help="record telemetry to CSV (Ctrl-C ends cleanly)")
+    p = subparsers.add_parser("log", help="record telemetry to CSV (Ctrl-C ends cleanly)",
+                              description="Stream the board's telemetry records into a CSV file, one column per "
+                              "field, with progress (samples, rate, lost frames). Ctrl-C ends it with a complete file. "
+                              "A board without calibration sends 0 for positions, deformation and force (it warns "
+                              "once); the raw ADC codes are always logged.")
     add_port_arguments(p)
     p.add_argument("--out", required=True, help="CSV file to write (columns: firmware.telemetry.FIELDS)")
     p.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
@@ -26,7 +30,11 @@ def run(args):
         sys.stderr.write("\r%8d samples  %7.1f/s  lost frames %d  board drops %d " % (s.samples, s.rate, s.lost_frames, s.board_dropped))
         sys.stderr.flush()
 
-    with open_board(args.port, args.board, args.calibration) as board:
+    with open_board(args.port, args.board, args.calibration, args.load) as board:
+        status = board.status_info or {}
+        if status.get("calibration_crc") is None:
+            print("warning: the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, "
+                  "raw_ref) are logged" % (status.get("calibration_error"), ", ".join(CALIBRATED_FIELDS)), file=sys.stderr)
         try:
             summary = record(board, args.out, args.seconds, args.rate, progress=progress)
         except KeyboardInterrupt:

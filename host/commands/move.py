@@ -26,7 +26,7 @@ def run(args):
         sys.stderr.write("\r%6.2f s  D2 %8.3f mm  (target %.3f mm)" % (seconds, value / 1000, args.to))
         sys.stderr.flush()
 
-    with open_board(args.port, args.board, args.calibration, require_calibration=True) as board:
+    with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
         try:
             ok, value, seconds = settle(board, "position", target, "d2_um", int(args.tolerance * 1000), args.timeout, progress=progress)
         finally:

@@ -1,5 +1,6 @@
 """`host plot run.csv`: positions, deformation, force, duty and targets of a logged run."""
 
+import sys
 from pathlib import Path
 
 from host.errors import UserError
@@ -7,7 +8,10 @@ from host.telemetry_plot import plot
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("plot", help="plot a telemetry CSV from host log")
+    p = subparsers.add_parser("plot", help="plot a telemetry CSV from host log",
+                              description="Plot a telemetry CSV from host log: positions, deformation, force, duty "
+                              "and targets. A run from a board without calibration (all those zero) is drawn from "
+                              "its raw ADC codes instead, with a warning.")
     p.add_argument("csv", help="the CSV written by host log")
     p.add_argument("--out", default=None, help="PNG to write (default: beside the CSV)")
     p.set_defaults(func=run)
@@ -19,7 +23,7 @@ def run(args):
         raise UserError("no such file: %s" % src)
     out = Path(args.out) if args.out else src.with_suffix(".png")
     try:
-        plot(src, out)
+        plot(src, out, warn=lambda text: print("warning: " + text, file=sys.stderr))
     except (ValueError, KeyError) as exc:
         raise UserError("cannot plot %s: %s" % (src, exc))
     print(out)

@@ -10,7 +10,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration) as board:
+    with open_board(args.port, args.board, args.calibration, args.load) as board:
         status = board.status_info
         for key in ("version", "board", "protocol", "calibration_crc", "calibration_error", "mode", "faults", "last_fault"):
             value = status.get(key)

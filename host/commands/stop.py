@@ -10,7 +10,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration) as board:
+    with open_board(args.port, args.board, args.calibration, args.load) as board:
         board.call("stop")
         print("stopped")
     return 0
