@@ -147,3 +147,16 @@ def test_higher_degree_is_never_worse_and_reaches_the_global_basin(example_sweep
     best = fit_bcm_global(r.x, r.y, 4)
     residual_stats(best, r.x, r.y)
     assert fast.rms <= 1.01 * best.rms
+
+
+def test_warm_start_from_a_lower_degree_fit(example_sweep):
+    # a caller fitting degree after degree (host compare) hands over its previous fit instead of
+    # letting every degree refit the ones below it; the elevated start is never worse than that fit
+    s = example_sweep
+    low = fit_model("bcm", s.x, s.y, 3)
+    warm = fit_model("bcm", s.x, s.y, 5, warm=low)  # a skipped degree is elevated too
+    assert warm.rms <= low.rms * (1 + 1e-9)
+    assert warm.rms <= fit_model("bcm", s.x, s.y, 5).rms * (1 + 1e-6)  # as good as its own chain here
+    assert fit_bcm(s.x, s.y, 6, warm=warm.coefficients).order == 6  # coefficients alone work too
+    with pytest.raises(ValueError, match="lower degree"):
+        fit_bcm(s.x, s.y, 5, warm=warm)
