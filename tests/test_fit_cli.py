@@ -75,6 +75,23 @@ def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
             assert abs(convert(kind, code, k) - want_um) < 8  # within the export's half-LSB bound
 
 
+def test_out_records_board_and_pot_identity(tmp_path, capsys):
+    from firmware.calibration import load_calibration
+    from host.calibration_file import read_calibration
+
+    path = str(tmp_path / "calib.json")
+    out = _json(capsys, EXAMPLE, "--out", path, "--board", "bench-rig-1", "--pot-id", "P1-0042")
+    assert out["calibration"]["board"] == "bench-rig-1" and out["calibration"]["pot_id"] == "P1-0042"
+    _json(capsys, EXAMPLE, "--out", path, "--pot", "pot2", "--pot-id", "P2-0007")
+    _json(capsys, EXAMPLE, "--order", "2", "--out", path)  # refit pot1: board and id stay
+    doc = read_calibration(path)
+    assert doc["board"] == "bench-rig-1" and doc["pots"] == {"pot1": "P1-0042", "pot2": "P2-0007"}
+    assert doc["pot1"]["pot_id"] == "P1-0042" and doc["pot2"]["pot_id"] == "P2-0007"
+    assert doc["pot1"]["order"] == 3 and "elevated" in " ".join(doc["pot1"]["fit"]["notes"])
+    cal = load_calibration(path)  # the firmware reads the same identity
+    assert cal.board == "bench-rig-1" and cal.pots == doc["pots"]
+
+
 def _bad(tmp_path, name, text):
     p = tmp_path / name
     p.write_text(text)
