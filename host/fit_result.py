@@ -38,10 +38,10 @@ class FitResult:
         fg = self(grid)
         increasing = fg[-1] >= fg[0]
         y = np.atleast_1d(np.asarray(y, dtype=float))
-        order = np.argsort(fg) if increasing else np.argsort(-fg)
+        # bracket each y between two grid points (the grid values are sorted: the curve is monotone),
+        # then bisect; a y beyond the curve's range ends at the nearer end of the input range
         idx = np.clip(np.searchsorted(fg if increasing else -fg, y if increasing else -y), 1, len(grid) - 1)
         a, b = grid[idx - 1].copy(), grid[idx].copy()
-        del order
         for _ in range(60):
             mid = 0.5 * (a + b)
             below = (self(mid) < y) if increasing else (self(mid) > y)
