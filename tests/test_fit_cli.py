@@ -129,6 +129,16 @@ def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
     assert "--adc-bits" in capsys.readouterr().err
 
 
+def test_full_scale_checks_coverage_of_a_volts_sweep(tmp_path, capsys):
+    raw = np.linspace(0.2, 0.6, 40)
+    path = _bad(tmp_path, "volts.csv", "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw))
+    assert main(["fit", path, "--json"]) == 0  # no claim about volts without a full scale
+    capsys.readouterr()
+    assert main(["fit", path, "--full-scale", "3.3"]) == 2
+    err = capsys.readouterr().err
+    assert "covers only 0.4 of its full scale 3.3" in err and err.count("\n") == 1
+
+
 def test_real_console_script(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "host", "fit", EXAMPLE, "--json"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr

@@ -41,6 +41,9 @@ def add_parser(subparsers):
                    "records for --pot, else none)")
     p.add_argument("--board", metavar="NAME", help="--out: identity of the board (default: keep the file's)")
     p.add_argument("--adc-bits", type=int, help="--out: the board's ADC bits (default: guessed from the raw range)")
+    p.add_argument("--full-scale", type=float, metavar="RAW",
+                   help="the converter's full scale in raw units, e.g. 3.3 for volts: rows tied on a rail (0 or "
+                   "this) are clipped, and the sweep must cover 25%% of it (default: known only for ADC codes)")
     p.add_argument("--plot", metavar="FIT.png", help="draw data, fit and residuals to this PNG")
     p.add_argument("--unit", default="mm", help="the reference unit, for reports and plots (default mm)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
@@ -146,7 +149,7 @@ def run(args):
 
     _check_model_available(args.model)
     say = (lambda msg: None) if args.json else (lambda msg: print(msg, file=sys.stderr, flush=True))
-    sweep = load_sweep(args.sweep)
+    sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()
     result, floors, reason = fit_sweep(sweep, args.model, args.order, args.bounds, args.budget, progress=say)
     noise = floors["noise_floor"]
