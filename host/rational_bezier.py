@@ -31,7 +31,7 @@ from scipy.linalg import solve_triangular
 from scipy.optimize import differential_evolution, lsq_linear
 from scipy.special import comb
 
-from host.fit_result import FitResult
+from host.fit_result import FitResult, check_points
 
 LN60 = math.log(60.0)
 WIDEN = 0.10  # handle bounds: reference range widened by this share of it on each side
@@ -256,14 +256,6 @@ def _result(order, bounds, lx, rx, y0, ys, problem, theta, notes):
         curve=lambda xs, c=coeffs: evaluate(c, xs),
         notes=notes,
     )
-
-
-def check_points(x):
-    """Every input the curve can meet: all integer codes for ADC data, else a dense grid."""
-    lo, hi = float(np.min(x)), float(np.max(x))
-    if np.all(np.asarray(x) == np.round(x)) and hi - lo <= 1 << 17:
-        return np.arange(math.ceil(lo), math.floor(hi) + 1, dtype=float)
-    return np.linspace(lo, hi, 4097)
 
 
 def reverses(coefficients, x):

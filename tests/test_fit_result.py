@@ -53,3 +53,28 @@ def test_inverse_clamps_beyond_the_range_and_refuses_a_turning_curve():
     assert not bump.monotone
     with pytest.raises(ValueError, match="monotone"):
         bump.inverse(0.5)
+
+
+def _dip(x, at=30001.0):
+    """Rising, but turning back for about 2 codes at `at`: between any two points of a 4,097-point
+    grid over 16 bits (16 codes apart), so only a check of every code sees it."""
+    return x - 3.0 * np.exp(-(((x - at) / 1.5) ** 2))
+
+
+def fit_dip(x, y, order):
+    from host.fit_result import FitResult
+
+    return FitResult("dip", order, 1, {}, (float(np.min(x)), float(np.max(x))), curve=_dip)
+
+
+def test_monotone_check_covers_every_code_of_a_16_bit_adc(monkeypatch):
+    from host import models
+    from host.fit_result import FitResult, is_monotone
+
+    codes = np.arange(0, 65536, 3.0)
+    r = FitResult("dip", 1, 1, {}, (0.0, 65535.0), curve=_dip)
+    assert is_monotone(r)  # the grid misses it
+    assert not is_monotone(r, codes)  # every code does not
+    assert is_monotone(r, codes + 0.5)  # not codes: the grid again
+    monkeypatch.setitem(models.MODELS, "dip", ("test_fit_result", "fit_dip", "a curve with a 2-code dip"))
+    assert not fit_model("dip", codes, codes, 1).monotone  # what fit_model reports for code data
