@@ -129,6 +129,29 @@ def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
     assert "--adc-bits" in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["fit", EXAMPLE, "--order", "abc"], "argument --order: invalid int value: 'abc'"),
+        (["fit", EXAMPLE, "--model", "nurbs"], "argument --model: invalid choice"),
+        (["fit"], "required: SWEEP.csv"),
+        (["compare", EXAMPLE, "--jobs", "two"], "argument --jobs: invalid int value"),
+        (["fit", EXAMPLE, "--no-such-option"], "unrecognized arguments: --no-such-option"),
+        (["no-such-command"], "invalid choice: 'no-such-command'"),
+    ],
+)
+def test_bad_options_are_one_line_and_exit_2(capsys, argv, fragment):
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith("error: ") and captured.err.count("\n") == 1 and fragment in captured.err
+    assert "usage:" not in captured.err and captured.out == ""
+
+
+def test_help_still_prints_the_usage(capsys):
+    assert main(["fit", "--help"]) == 0
+    assert "usage: host fit" in capsys.readouterr().out
+
+
 def test_full_scale_checks_coverage_of_a_volts_sweep(tmp_path, capsys):
     raw = np.linspace(0.2, 0.6, 40)
     path = _bad(tmp_path, "volts.csv", "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw))
