@@ -26,7 +26,7 @@ from array import array
 
 import binascii
 
-from firmware.bcm_fixed import LENGTH as BCM3_LENGTH
+from firmware.bcm_fixed import invalid as bcm3_invalid
 from firmware.bcm_fixed import bcm3
 from firmware.pwl_fixed import pwl
 
@@ -89,11 +89,8 @@ def _check(ok, name, why):
 
 
 def check_bcm3(k, name="bcm3"):
-    _check(len(k) == BCM3_LENGTH, name, "bcm3 needs %d values" % BCM3_LENGTH)
-    _check(0 <= k[0] <= 20 and 1 <= k[2] <= 1 << 20 and -(1 << 20) <= k[1] <= 1 << 20, name, "bad input scaling")
-    _check(0 <= k[3] <= 8, name, "bad handle shift")
-    _check(min(k[4:8]) >= 1 and max(k[4:8]) <= 1 << 20, name, "weights must be 1..2**20")
-    _check(max(k[8:12]) - min(k[8:12]) <= 1 << 20 and max(abs(v) for v in k[8:12]) <= 1 << 29, name, "handles out of range")
+    why = bcm3_invalid(k)  # the layout's limits live with the evaluator
+    _check(why is None, name, why)
 
 
 def check_pwl(k, name="pwl"):

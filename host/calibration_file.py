@@ -138,16 +138,25 @@ def read_calibration(path):
 def update_section(path, name, section, board=None, pots=None):
     """Set section `name` of the file at `path` (created if missing), keeping all the others.
 
-    A corrupt existing file is refused (UserError), never silently replaced.
+    A corrupt existing file is refused (UserError), never silently replaced. `board` replaces
+    the board identity when given; `pots` ({"pot1": id, ...}) is merged into the file's. A pot
+    section and the file's `pots` entry for it name the same pot: a section without a pot_id
+    takes the one the file records (a refit of the same pot), and one with a pot_id records it.
     """
     if name not in SECTIONS:
         raise UserError("unknown calibration section %r (known: %s)" % (name, ", ".join(SECTIONS)))
     doc = read_calibration(path) if Path(path).exists() else new_document(board, pots)
-    doc[name] = section
     if board is not None:
         doc["board"] = board
     if pots:
         doc["pots"] = dict(doc.get("pots") or {}, **pots)
+    if name in POT_SECTIONS:
+        known = (doc.get("pots") or {}).get(name)
+        if section.get("pot_id") is None and known is not None:
+            section = dict(section, pot_id=known)
+        elif section.get("pot_id") is not None:
+            doc["pots"] = dict(doc.get("pots") or {}, **{name: section["pot_id"]})
+    doc[name] = section
     doc["date"] = now_iso()
     write_calibration(path, doc)
     return doc

@@ -16,8 +16,16 @@ import host.commands
 from host.errors import UserError
 
 
+class _Parser(argparse.ArgumentParser):
+    """A bad option or argument is a user error like any other: one line and exit status 2
+    (argparse prints its whole usage block). Subcommand parsers are made of this class too."""
+
+    def error(self, message):
+        self.exit(2, "error: %s (see %s --help)\n" % (message, self.prog))
+
+
 def build_parser():
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="host",
         description="lsea-kit host tools: fit potentiometer calibrations, talk to the board, "
         "run the guided calibration and the paper's experiments.",
@@ -32,7 +40,10 @@ def build_parser():
 
 def main(argv=None):
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # --help or --version (0), or a bad option (2, its line printed)
+        return exc.code
     if not getattr(args, "func", None):
         parser.print_help()
         return 2

@@ -23,7 +23,12 @@ from host.models import MODELS, fit_model
 DEFAULT_MODELS = ("bcm", "pcm", "cheb", "spline", "lut", "pwl")
 # Models whose fitter can start from the previous order's fit: their objective then never rises
 # with the order (a free-knot search otherwise lands in a worse local optimum now and then).
-WARM_START = {"pwl": lambda fit: {"start_knots": fit.coefficients["knots_x"]}}
+# BCM: the previous degree, elevated, is one more start; without it each degree would refit every
+# degree below it (the fitter's own warm-start chain), quadratic work over 2-15.
+WARM_START = {
+    "pwl": lambda fit: {"start_knots": fit.coefficients["knots_x"]},
+    "bcm": lambda fit: {"warm": fit},
+}
 COLUMNS = ("model", "order", "n_params", "norm2", "rms", "rms_over_noise", "max_abs", "monotone", "fit_seconds", "error")
 
 

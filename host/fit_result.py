@@ -5,6 +5,7 @@ sweep's reference unit, mm for our pots). It can evaluate itself, invert itself 
 curves) and describe itself as a plain dict for `--json` and the calibration file.
 """
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -38,10 +39,10 @@ class FitResult:
         fg = self(grid)
         increasing = fg[-1] >= fg[0]
         y = np.atleast_1d(np.asarray(y, dtype=float))
-        order = np.argsort(fg) if increasing else np.argsort(-fg)
+        # bracket each y between two grid points (the grid values are sorted: the curve is monotone),
+        # then bisect; a y beyond the curve's range ends at the nearer end of the input range
         idx = np.clip(np.searchsorted(fg if increasing else -fg, y if increasing else -y), 1, len(grid) - 1)
         a, b = grid[idx - 1].copy(), grid[idx].copy()
-        del order
         for _ in range(60):
             mid = 0.5 * (a + b)
             below = (self(mid) < y) if increasing else (self(mid) > y)
@@ -78,10 +79,20 @@ def residual_stats(result, x, y):
     return r
 
 
-def is_monotone(result, n_grid=4096):
-    """True when the curve never reverses direction over its input range (dense grid check)."""
-    lo, hi = result.x_range
-    f = result(np.linspace(lo, hi, n_grid))
+def check_points(x):
+    """Every input a curve fitted to inputs x can meet: each integer code when x holds ADC codes
+    (up to 2**17 of them, so 16-bit converters too), else a dense grid of 4,097 points."""
+    lo, hi = float(np.min(x)), float(np.max(x))
+    if np.all(np.asarray(x) == np.round(x)) and hi - lo <= 1 << 17:
+        return np.arange(math.ceil(lo), math.floor(hi) + 1, dtype=float)
+    return np.linspace(lo, hi, 4097)
+
+
+def is_monotone(result, x=None):
+    """True when the curve never reverses direction over its inputs: every code when `x` (the
+    data it was fitted to) holds ADC codes, else a dense grid of its input range."""
+    points = np.linspace(*result.x_range, 4097) if x is None else check_points(x)
+    f = result(points)
     d = np.diff(f)
     span = abs(f[-1] - f[0]) or 1.0
     eps = 1e-12 * span

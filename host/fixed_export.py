@@ -22,7 +22,6 @@ from host.rational_bezier import evaluate as bcm_float  # the float64 reference 
 
 LIMIT = 2**30  # the 31-bit small-int range of a 32-bit MicroPython port
 UM_PER_MM = 1000.0
-WEIGHT_BITS = 20  # the largest bcm3 weight is 2**20 (see firmware/bcm_fixed.py)
 
 
 class FixedExport(list):
@@ -138,13 +137,19 @@ def _finish(kind, k, func, inputs, reference, bound, what, tracked=None):
 # ---------------------------------------------------------------- BCM-3
 
 
+def _mantissa(c):
+    """(m, e) with c = m / 2**e and m in [2**18, 2**19] (the bcm3 float form of a weight ratio)."""
+    f, x = math.frexp(c)  # c = f * 2**x, f in [0.5, 1)
+    return round(f * 2**19), 19 - x
+
+
 def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
     """k for `firmware.bcm_fixed.bcm3` from a bcm coefficient dict (x in ADC codes, y in mm).
 
     `unit_um` is how many um one unit of the handles is (1000 for mm). Raises ValueError when
     the curve is not degree 3 or its integer form cannot meet the bound.
     """
-    s = _input_shift(adc_bits, 20)
+    s = _input_shift(adc_bits, 29)
     w = [float(v) for v in coefficients["weights"]]
     p = [float(v) * unit_um for v in coefficients["handles"]]
     if len(w) != 4 or len(p) != 4:
@@ -155,19 +160,24 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
         raise ValueError("bcm handles must be finite")
     lx = round(float(coefficients["lx"]) * 2**s)
     rx = round(float(coefficients["rx"]) * 2**s)
-    if not 1 <= rx <= 2**20 or abs(lx) > 2**20:
+    if not (lx >= 0 and rx >= 2**19 and lx + rx <= 2**29):
         raise ValueError("lx/rx outside the %d-bit ADC range (lx=%r, rx=%r)" % (adc_bits, coefficients["lx"], coefficients["rx"]))
-    wmax = max(w)
-    weights = [round(v * 2**WEIGHT_BITS / wmax) for v in w]
-    if min(weights) < 1:
-        raise ValueError("weight ratio %.0f too large for %d-bit weights" % (wmax / min(w), WEIGHT_BITS))
-    spread = max(p) - min(p)
-    h = 4
-    while h > 0 and (spread * 2**h > 2**20 or max(abs(v) for v in p) * 2**h > 2**29):
+    # the weight ratios from each end, binomials included: c_i = C(3, i) w_i / w_0 and mirrored
+    binomial = (1, 3, 3, 1)
+    ratios = [_mantissa(binomial[i] * w[i] / w[0]) for i in (1, 2, 3)]
+    ratios += [_mantissa(binomial[i] * w[3 - i] / w[3]) for i in (1, 2, 3)]
+    if any(not -64 <= e <= 64 for _, e in ratios):
+        raise ValueError("weight ratio %.3g too large for bcm3" % (max(w) / min(w)))
+    h = 8  # finest handle unit 2**-h um whose spread and size still fit the layout
+    while h > 0 and (round((max(p) - min(p)) * 2**h) + 1 > 2**21 or max(abs(v) for v in p) * 2**h > 2**29):
         h -= 1
-    if spread * 2**h > 2**20 or max(abs(v) for v in p) * 2**h > 2**29:
-        raise ValueError("handle spread %.0f um too large (limit 2**20 um)" % spread)
-    k = [s, lx, rx, h, *weights, *(round(v * 2**h) for v in p)]
+    handles = [round(v * 2**h) for v in p]
+    if max(handles) - min(handles) > 2**21 or max(abs(v) for v in handles) > 2**29:
+        raise ValueError("handle spread %.0f um too large (limit 2**21 um)" % (max(p) - min(p)))
+    k = [s, lx, rx, rx.bit_length() - 20, h, *handles, *(v for pair in ratios for v in pair)]
+    why = bcm_fixed.invalid(k)
+    if why:
+        raise ValueError("bcm3: " + why)
     codes = np.arange(2**adc_bits)
     reference = bcm_float(coefficients, codes) * unit_um
     bound = _pot_bound(reference, adc_bits, max_error_um)

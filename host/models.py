@@ -38,7 +38,7 @@ def fit_model(name, x, y, order, n_excluded=0, **options):
     result = fit(x, y, order, **options)
     result.fit_seconds = time.perf_counter() - t0
     residual_stats(result, x, y)
-    result.monotone = is_monotone(result)
+    result.monotone = is_monotone(result, x)  # every code when x are ADC codes
     result.n_samples = len(x)
     result.n_excluded = n_excluded
     return result

@@ -31,7 +31,7 @@ from scipy.linalg import solve_triangular
 from scipy.optimize import differential_evolution, lsq_linear
 from scipy.special import comb
 
-from host.fit_result import FitResult
+from host.fit_result import FitResult, check_points
 
 LN60 = math.log(60.0)
 WIDEN = 0.10  # handle bounds: reference range widened by this share of it on each side
@@ -258,14 +258,6 @@ def _result(order, bounds, lx, rx, y0, ys, problem, theta, notes):
     )
 
 
-def check_points(x):
-    """Every input the curve can meet: all integer codes for ADC data, else a dense grid."""
-    lo, hi = float(np.min(x)), float(np.max(x))
-    if np.all(np.asarray(x) == np.round(x)) and hi - lo <= 1 << 17:
-        return np.arange(math.ceil(lo), math.floor(hi) + 1, dtype=float)
-    return np.linspace(lo, hi, 4097)
-
-
 def reverses(coefficients, x):
     """0 when the curve is monotone over every input of x's kind, else the largest step back."""
     f = evaluate(coefficients, check_points(x))
@@ -295,12 +287,17 @@ def _search(make, starts, lo, hi):
     return best[0]
 
 
-def fit_bcm(x, y, order, bounds="data", starts=None, seed=0, monotone="check", max_search_points=4000):
+def fit_bcm(x, y, order, bounds="data", starts=None, seed=0, monotone="check", max_search_points=4000,
+            warm=None):
     """Fit a degree-`order` BCM to sorted (x, y); monotone = "check" | "force" | "off".
 
     `starts` local searches (default 4 up to degree 3, 7 above, where more basins appear).
     Above `max_search_points` samples the weights are searched on that many bin means (the
     handles are always solved on every sample), which keeps 30,000-sample sweeps fast.
+    `warm`: a fit of lower degree to the same data (a FitResult or its coefficients), elevated
+    exactly and used as one more start. From degree 4 up, without it, the degree n-1 fit is made
+    here first (which repeats every degree from 3 up); a caller that fits degree after degree,
+    like `host compare`, passes its previous fit instead and does each degree once.
     """
     lx, rx, y0, ys, yn, basis, free, lo, hi, plo, phi, interior = _setup(x, y, order, bounds)
     starts = (4 if order <= 3 else 7) if starts is None else int(starts)
@@ -309,14 +306,18 @@ def fit_bcm(x, y, order, bounds="data", starts=None, seed=0, monotone="check", m
     basis_b = basis if wt is None else bernstein(tb, order)
     notes = [] if wt is None else ["weights searched on %d bin means of the %d samples" % (tb.size, t.size)]
     start_points = _starts(free.size, lo, hi, starts, seed, interior)
-    if order >= 4:
-        # One more start: a degree n-1 fit elevated exactly to degree n. The handle solve at its
-        # weights already matches that curve, so this start is never worse than that fit, and it
-        # sits in the basin the lower degree found (the generic starts can miss it at higher
-        # degree). The lower fit is itself warm-started the same way down to degree 3, so above
-        # degree 4 it uses 1 generic start to keep the chain cheap. Degrees 1-3 stay as they were.
-        lower = fit_bcm(x, y, order - 1, bounds, 1 if order > 4 else None, seed, "off", max_search_points)
-        w = np.asarray(elevate(lower.coefficients, order)["weights"])
+    if warm is None and order >= 4:
+        # The degree n-1 fit, elevated exactly, sits in the basin the lower degree found (the
+        # generic starts can miss it at higher degree) and its handle solve already matches that
+        # curve, so this start is never worse than that fit. The lower fit is itself warm-started
+        # the same way down to degree 3, so above degree 4 it uses 1 generic start to keep the
+        # chain cheap. Degrees 1-3 stay as they were.
+        warm = fit_bcm(x, y, order - 1, bounds, 1 if order > 4 else None, seed, "off", max_search_points)
+    if warm is not None:
+        previous = getattr(warm, "coefficients", warm)
+        if len(previous["weights"]) - 1 >= order:
+            raise ValueError("a warm start must have a lower degree than %d" % order)
+        w = np.asarray(elevate(previous, order)["weights"])
         start_points.append(np.clip(np.log(w[free] / (w[0] if bounds == "data" else w.min())), lo, hi))
     theta = None
     if monotone != "force":

@@ -5,9 +5,12 @@ A sweep CSV has a header row with at least the columns `raw` and `reference`; an
 estimates; every other column is ignored. Hygiene, each step counted in `Sweep.exclusions`:
 
 - rows whose raw or reference is not a finite number are dropped ("non_finite");
-- rows clipped at an ADC rail are dropped: when several rows share the lowest (or highest) raw
-  value, the pot sat on the rail there and the reference kept moving, so those rows do not
-  belong to the function raw -> reference ("clipped_low" / "clipped_high");
+- rows clipped at an end are dropped ("clipped_low" / "clipped_high"): two or more rows that
+  share the lowest (or highest) raw value AND either sit on a rail of the converter (0 or its
+  full scale, when that is known: given, or guessed for ADC codes) or have a reference that kept
+  moving while raw stood still (further than the sweep's noise and one raw step explain). Such
+  rows do not belong to the function raw -> reference. Ties without either sign are repeated
+  readings of a slow sweep and stay;
 - the rest is sorted by raw (stable, so equal codes keep their file order).
 
 A sweep that has too few good points, or covers too little of its range, is refused with a
@@ -15,12 +18,14 @@ A sweep that has too few good points, or covers too little of its range, is refu
 """
 
 import csv
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from host.errors import UserError
+from host.noise_floor import estimate_noise
 
 MIN_POINTS = 20  # fewer cannot pin down a 7-parameter BCM-3 with any redundancy
 MIN_COVERAGE = 0.25  # of the ADC full scale, when raw looks like ADC codes
@@ -51,8 +56,11 @@ def _number(text, column, line):
         raise UserError("line %d: %s value %r is not a number" % (line, column, text)) from None
 
 
-def load_sweep(path):
-    """Read and clean a sweep CSV (see the module docstring); raises UserError on bad input."""
+def load_sweep(path, full_scale=None):
+    """Read and clean a sweep CSV (see the module docstring); raises UserError on bad input.
+
+    `full_scale`: the converter's full scale in raw units (e.g. 3.3 for volts); by default it is
+    guessed only when raw looks like ADC codes, and without it there is no coverage check."""
     path = Path(path)
     if not path.is_file():
         raise UserError("sweep file not found: %s" % path)
@@ -84,7 +92,8 @@ def load_sweep(path):
             direction.append(d)
     if not raw:
         raise UserError("sweep %s has a header but no data rows" % path)
-    sweep = sweep_from_arrays(raw, ref, direction if idir is not None else None, source=str(path))
+    sweep = sweep_from_arrays(raw, ref, direction if idir is not None else None, source=str(path),
+                              full_scale=full_scale)
     sweep.path = path
     return sweep
 
@@ -100,12 +109,14 @@ def _full_scale(x):
     return None
 
 
-def sweep_from_arrays(raw, reference, direction=None, source="sweep"):
+def sweep_from_arrays(raw, reference, direction=None, source="sweep", full_scale=None):
     """Apply the sweep hygiene to arrays already in memory; returns a Sweep (path None)."""
     x = np.asarray(raw, dtype=float).ravel()
     y = np.asarray(reference, dtype=float).ravel()
     if x.shape != y.shape:
         raise UserError("%s: raw has %d values but reference has %d" % (source, x.size, y.size))
+    if full_scale is not None and not (math.isfinite(full_scale) and full_scale > 0):
+        raise UserError("%s: the full scale must be a positive number, not %r" % (source, full_scale))
     d = None if direction is None else np.asarray(direction, dtype=float).ravel()
     if d is not None:
         if d.shape != x.shape:
@@ -117,23 +128,42 @@ def sweep_from_arrays(raw, reference, direction=None, source="sweep"):
     keep = np.isfinite(x) & np.isfinite(y)
     if not np.all(keep):
         exclusions["non_finite"] = int(np.count_nonzero(~keep))
+    fs = _full_scale(x[keep]) if full_scale is None and np.any(keep) else full_scale
     if np.count_nonzero(keep) >= 2:
         xs = x[keep]
-        for reason, rail in (("clipped_low", np.min(xs)), ("clipped_high", np.max(xs))):
-            at_rail = keep & (x == rail)
-            if np.count_nonzero(at_rail) >= 2:  # one reading at the rail may be a real end point
-                exclusions[reason] = int(np.count_nonzero(at_rail))
-                keep &= ~at_rail
+        ties = {reason: keep & (x == end) for reason, end in (("clipped_low", np.min(xs)), ("clipped_high", np.max(xs)))}
+        for reason, at_end in ties.items():
+            # one reading at the end may be a real end point; two or more are clipped only with a sign
+            if np.count_nonzero(at_end) >= 2 and _clipped(x, y, keep & ~ties["clipped_low"] & ~ties["clipped_high"],
+                                                          at_end, fs):
+                exclusions[reason] = int(np.count_nonzero(at_end))
+                keep &= ~at_end
     x, y = x[keep], y[keep]
     d = None if d is None else d[keep]
     order = np.argsort(x, kind="stable")
     x, y = x[order], y[order]
     d = None if d is None else d[order]
-    _check_usable(x, y, n_input, source)
+    _check_usable(x, y, n_input, source, fs)
     return Sweep(x=x, y=y, direction=d, n_input=n_input, n_excluded=n_input - int(x.size), exclusions=exclusions)
 
 
-def _check_usable(x, y, n_input, source):
+def _clipped(x, y, inner, at_end, fs):
+    """Whether the rows `at_end` (two or more sharing the lowest or highest raw) are clipped: on a
+    rail of the converter, or with a reference that moved further than noise and one raw step."""
+    end = float(x[at_end][0])
+    if fs is not None and (end <= 0 or end >= fs):
+        return True
+    xi, yi = x[inner], y[inner]
+    if xi.size < 3:
+        return False
+    noise = estimate_noise(xi, yi)  # direction-blind: hysteresis between passes counts as noise
+    step = float(np.min(np.diff(np.unique(xi))))  # the raw resolution (1 for ADC codes)
+    near = np.argsort(np.abs(xi - end), kind="stable")[:10]  # the local slope next to this end
+    slope = abs(np.polyfit(xi[near], yi[near], 1)[0]) if np.ptp(xi[near]) > 0 else 0.0
+    return float(np.ptp(y[at_end])) > 4 * noise + 3 * slope * step
+
+
+def _check_usable(x, y, n_input, source, fs):
     n = int(x.size)
     if n < MIN_POINTS:
         raise UserError(
@@ -143,11 +173,10 @@ def _check_usable(x, y, n_input, source):
     span = float(x[-1] - x[0])
     if span <= 0 or float(np.ptp(y)) <= 0:
         raise UserError("%s: raw or reference never changes, so there is no curve to fit" % source)
-    fs = _full_scale(x)
     if fs is not None and span < MIN_COVERAGE * fs:
         raise UserError(
-            "%s: raw covers only %.0f of the %d-code ADC range (%.0f %%); sweep the whole stroke (at least %.0f %%)"
-            % (source, span, fs, 100 * span / fs, 100 * MIN_COVERAGE)
+            "%s: raw covers only %s of its full scale %s (%.0f %%); sweep the whole stroke (at least %.0f %%)"
+            % (source, _fmt(span), _fmt(fs), 100 * span / fs, 100 * MIN_COVERAGE)
         )
     gap = float(np.max(np.diff(x)))
     if gap > MAX_GAP * span:

@@ -48,31 +48,63 @@ def numbers(cal):
     return (cal.pot1[0], list(cal.pot1[1]), cal.pot2[0], list(cal.pot2[1]), cal.df and list(cal.df), cal.force, cal.force_inverse)
 
 
-@settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@st.composite
+def pot_fits(draw):
+    """A fit a pot section can hold: a BCM-3 from the fitter's box (a 60 mm pot, either way
+    round) or a monotone table over a pot's stroke, with random statistics and notes (any text)."""
+    if draw(st.booleans()):
+        lx, ux = draw(st.floats(0, 400)), draw(st.floats(3600, 4095))
+        handles = [draw(st.floats(-6, 12)), draw(st.floats(-6, 66)), draw(st.floats(-6, 66)), draw(st.floats(48, 66))]
+        c = {"lx": lx, "rx": ux - lx, "weights": [1.0] + [60.0 ** draw(st.floats(-1, 1)) for _ in range(3)],
+             "handles": handles[::-1] if draw(st.booleans()) else handles}
+        fit = bcm_fit(c)
+    else:
+        xs = sorted(draw(st.lists(st.integers(0, 4095), min_size=2, max_size=12, unique=True)))
+        lo, hi = draw(st.floats(-6, 12)), draw(st.floats(48, 66))  # a pot's stroke: 0.5 LSB >= 4 um
+        ys = [lo, *sorted(draw(st.lists(st.floats(lo, hi), min_size=len(xs) - 2, max_size=len(xs) - 2))), hi]
+        c = {"knots_x": [float(v) for v in xs], "knots_y": ys}
+        fit = FitResult("lut", len(xs), len(xs), c, (float(xs[0]), float(xs[-1])),
+                        curve=lambda x, c=c: np.interp(x, c["knots_x"], c["knots_y"]))
+    fit.rms = draw(st.floats(allow_nan=True, allow_infinity=True))
+    fit.n_samples = draw(st.integers(0, 10**6))
+    fit.notes = draw(st.lists(st.text(max_size=30), max_size=3))
+    return fit
+
+
+@settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(
-    board=st.text(min_size=0, max_size=20),
-    pots=st.dictionaries(st.sampled_from(["pot1", "pot2"]), st.text(max_size=10)),
-    rms=st.floats(allow_nan=True, allow_infinity=True),
+    board=st.one_of(st.none(), st.text(min_size=0, max_size=20)),
+    ids=st.lists(st.one_of(st.none(), st.text(max_size=10)), min_size=2, max_size=2),
+    fits=st.lists(pot_fits(), min_size=2, max_size=2),
     with_df=st.booleans(),
 )
-def test_round_trip(tmp_path, board, pots, rms, with_df):
-    doc = new_document(board, pots)
-    doc["pot1"] = dict(POT1, fit=dict(POT1["fit"], rms=rms))
-    doc["pot2"] = POT2
+def test_round_trip(tmp_path, board, ids, fits, with_df):
+    doc = new_document(board, {p: i for p, i in zip(("pot1", "pot2"), ids) if i is not None})
+    for name, fit, pot_id in zip(("pot1", "pot2"), fits, ids):
+        doc[name] = pot_section(fit, 12, pot_id=pot_id)
     if with_df:
         doc["df"] = DF_SECTION
     path = tmp_path / "cal.json"
     crc = write_calibration(path, doc)
     back = read_calibration(path)
-    assert back["board"] == board and back["pots"] == pots
-    assert back["pot1"]["fixed"] == POT1["fixed"] and back["pot2"]["fixed"] == POT2["fixed"]
-    assert back["pot2"]["coefficients"] == POT2["coefficients"] and back["pot2"]["fit"]["rms"] is None
-    assert back["pot1"]["fit"]["rms"] == (rms if np.isfinite(rms) else None)  # NaN stored as null
+    assert back["board"] == board and back["pots"] == doc["pots"] and back["date"] == doc["date"]
+    for name, fit, pot_id in zip(("pot1", "pot2"), fits, ids):
+        section, stored = doc[name], back[name]
+        assert stored["pot_id"] == pot_id and stored["kind"] == section["kind"] and stored["model"] == fit.model
+        assert stored["coefficients"] == section["coefficients"] and stored["fixed"] == section["fixed"]
+        assert stored["fit"]["rms"] == (fit.rms if np.isfinite(fit.rms) else None)  # NaN/inf stored as null
+        assert stored["fit"]["notes"] == fit.notes and stored["fit"]["n_samples"] == fit.n_samples
+        assert stored["fixed_check"] == section["fixed_check"]
     assert ("df" in back) == with_df
     cal = load_calibration(str(path))
-    assert cal.crc == crc and cal.board == board and cal.version == 1
-    assert numbers(cal)[:4] == ("bcm3", POT1["fixed"], "pwl", POT2["fixed"])
+    assert cal.crc == crc and cal.board == board and cal.version == 1 and cal.pots == doc["pots"]
+    assert numbers(cal)[:4] == (doc["pot1"]["kind"], doc["pot1"]["fixed"], doc["pot2"]["kind"], doc["pot2"]["fixed"])
     assert (cal.df is not None) == with_df and cal.force is None and cal.force_inverse is None
+    # what the board will compute is the fitted curve, within the bound the export promised
+    codes = np.arange(0, 4096, 7)
+    for (kind, k), fit, section in ((cal.pot1, fits[0], doc["pot1"]), (cal.pot2, fits[1], doc["pot2"])):
+        got = np.array([convert(kind, int(x), k) for x in codes])
+        assert np.max(np.abs(got - 1000 * fit(np.clip(codes, *fit.x_range)))) <= section["fixed_check"]["bound"]
 
 
 def test_every_flipped_byte_is_caught_or_harmless(tmp_path):
@@ -112,8 +144,8 @@ def raw_document(body, schema=1, crc=None):
         (lambda b: (b, 1, 12345), "CRC"),
         (lambda b: ({k: v for k, v in b.items() if k != "pot2"}, 1, None), "pot2 missing"),
         (lambda b: (dict(b, pot1=dict(b["pot1"], kind="spline")), 1, None), "unknown kind"),
-        (lambda b: (dict(b, pot1=dict(b["pot1"], fixed=b["pot1"]["fixed"][:-1])), 1, None), "bcm3 needs 12"),
-        (lambda b: (dict(b, pot1=dict(b["pot1"], fixed=b["pot1"]["fixed"][:4] + [0] + b["pot1"]["fixed"][5:])), 1, None), "weights"),
+        (lambda b: (dict(b, pot1=dict(b["pot1"], fixed=b["pot1"]["fixed"][:-1])), 1, None), "bcm3 needs 21"),
+        (lambda b: (dict(b, pot1=dict(b["pot1"], fixed=b["pot1"]["fixed"][:9] + [0] + b["pot1"]["fixed"][10:])), 1, None), "weight ratio"),
         (lambda b: (dict(b, pot2=dict(b["pot2"], fixed=[4, 4, 0, 10, 10, 20, 0, 1, 2, 3])), 1, None), "increase"),
         (lambda b: (dict(b, pot2=dict(b["pot2"], fixed=[2, 4, 0, 60000, 0, 60000])), 1, None), "31 bits"),
         (lambda b: (dict(b, df=dict(b["df"], fixed=b["df"]["fixed"][:-2])), 1, None), "degree"),
@@ -177,6 +209,17 @@ def test_killed_writer_leaves_the_old_file(tmp_path):
     assert proc.returncode == -9, proc.stderr
     assert path.read_bytes() == before
     assert read_calibration(path)["board"] == "old"
+
+
+def test_pot_identity_follows_its_section(tmp_path):
+    path = tmp_path / "cal.json"
+    update_section(path, "pot1", dict(POT1, pot_id="S-1"), board="rig-2")
+    update_section(path, "pot1", dict(POT1, pot_id=None))  # a refit of the same pot keeps its id
+    doc = read_calibration(path)
+    assert doc["board"] == "rig-2" and doc["pots"] == {"pot1": "S-1"} and doc["pot1"]["pot_id"] == "S-1"
+    update_section(path, "pot1", dict(POT1, pot_id="S-9"))  # a new pot replaces it
+    doc = read_calibration(path)
+    assert doc["pots"] == {"pot1": "S-9"} and doc["pot1"]["pot_id"] == "S-9" and doc["board"] == "rig-2"
 
 
 def test_update_section_keeps_the_others(tmp_path):

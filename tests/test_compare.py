@@ -133,6 +133,38 @@ def test_pwl_objective_never_rises_with_the_order_in_a_comparison(realdata_dir):
     assert norms[-1] < 0.5 * norms[3]
 
 
+def test_bcm_is_warm_started_from_the_previous_degree():
+    from host.example_sweep import DEFAULT_PATH
+    from host.models import fit_model
+    from host.sweep import load_sweep
+
+    # each degree starts from the previous row's fit, elevated: the objective never rises with
+    # the degree, and the rows are as good as independent fits (each of which refits the degrees
+    # below it, quadratic work over 2-15)
+    sweep = load_sweep(DEFAULT_PATH)
+    rows = compare_models(sweep.x, sweep.y, list(range(2, 9)), ["bcm"])
+    norms = [r["norm2"] for r in rows]
+    assert all(b <= a * (1 + 1e-9) for a, b in zip(norms, norms[1:])), norms
+    alone = fit_model("bcm", sweep.x, sweep.y, 8)
+    assert rows[-1]["rms"] <= alone.rms * (1 + 1e-6)
+
+
+def test_bcm_fits_each_degree_once(monkeypatch):
+    import host.rational_bezier as rb
+
+    calls, real = [], rb.fit_bcm
+
+    def spy(x, y, order, *args, **kw):
+        warm = kw.get("warm")
+        calls.append((order, warm.order if warm is not None else None))
+        return real(x, y, order, *args, **kw)
+
+    monkeypatch.setattr(rb, "fit_bcm", spy)  # the fitter's own degree chain calls it by this name too
+    x = np.linspace(0, 4095, 300)
+    compare_models(x, 60 * x / 4095 + 2 * np.tanh((x - 3700) / 80), [2, 3, 4, 5, 6], ["bcm"])
+    assert calls == [(2, None), (3, 2), (4, 3), (5, 4), (6, 5)]
+
+
 def test_worker_processes_give_the_same_rows():
     x = np.linspace(0, 4095, 400)
     y = 60 * x / 4095 + 2 * np.tanh((x - 3700) / 80)

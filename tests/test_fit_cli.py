@@ -75,6 +75,23 @@ def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
             assert abs(convert(kind, code, k) - want_um) < 8  # within the export's half-LSB bound
 
 
+def test_out_records_board_and_pot_identity(tmp_path, capsys):
+    from firmware.calibration import load_calibration
+    from host.calibration_file import read_calibration
+
+    path = str(tmp_path / "calib.json")
+    out = _json(capsys, EXAMPLE, "--out", path, "--board", "bench-rig-1", "--pot-id", "P1-0042")
+    assert out["calibration"]["board"] == "bench-rig-1" and out["calibration"]["pot_id"] == "P1-0042"
+    _json(capsys, EXAMPLE, "--out", path, "--pot", "pot2", "--pot-id", "P2-0007")
+    _json(capsys, EXAMPLE, "--order", "2", "--out", path)  # refit pot1: board and id stay
+    doc = read_calibration(path)
+    assert doc["board"] == "bench-rig-1" and doc["pots"] == {"pot1": "P1-0042", "pot2": "P2-0007"}
+    assert doc["pot1"]["pot_id"] == "P1-0042" and doc["pot2"]["pot_id"] == "P2-0007"
+    assert doc["pot1"]["order"] == 3 and "elevated" in " ".join(doc["pot1"]["fit"]["notes"])
+    cal = load_calibration(path)  # the firmware reads the same identity
+    assert cal.board == "bench-rig-1" and cal.pots == doc["pots"]
+
+
 def _bad(tmp_path, name, text):
     p = tmp_path / name
     p.write_text(text)
@@ -110,6 +127,39 @@ def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
     text = "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw)
     assert main(["fit", _bad(tmp_path, "volts.csv", text), "--out", str(tmp_path / "c.json")]) == 2
     assert "--adc-bits" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    "argv, fragment",
+    [
+        (["fit", EXAMPLE, "--order", "abc"], "argument --order: invalid int value: 'abc'"),
+        (["fit", EXAMPLE, "--model", "nurbs"], "argument --model: invalid choice"),
+        (["fit"], "required: SWEEP.csv"),
+        (["compare", EXAMPLE, "--jobs", "two"], "argument --jobs: invalid int value"),
+        (["fit", EXAMPLE, "--no-such-option"], "unrecognized arguments: --no-such-option"),
+        (["no-such-command"], "invalid choice: 'no-such-command'"),
+    ],
+)
+def test_bad_options_are_one_line_and_exit_2(capsys, argv, fragment):
+    assert main(argv) == 2
+    captured = capsys.readouterr()
+    assert captured.err.startswith("error: ") and captured.err.count("\n") == 1 and fragment in captured.err
+    assert "usage:" not in captured.err and captured.out == ""
+
+
+def test_help_still_prints_the_usage(capsys):
+    assert main(["fit", "--help"]) == 0
+    assert "usage: host fit" in capsys.readouterr().out
+
+
+def test_full_scale_checks_coverage_of_a_volts_sweep(tmp_path, capsys):
+    raw = np.linspace(0.2, 0.6, 40)
+    path = _bad(tmp_path, "volts.csv", "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw))
+    assert main(["fit", path, "--json"]) == 0  # no claim about volts without a full scale
+    capsys.readouterr()
+    assert main(["fit", path, "--full-scale", "3.3"]) == 2
+    err = capsys.readouterr().err
+    assert "covers only 0.4 of its full scale 3.3" in err and err.count("\n") == 1
 
 
 def test_real_console_script(tmp_path):

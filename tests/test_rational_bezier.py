@@ -62,11 +62,30 @@ def test_monotone_refit_when_best_curve_reverses():
     assert np.all(np.diff(r.coefficients["handles"]) >= -1e-9)
 
 
-def test_weight_scale_invariance():
-    x = np.linspace(0, 4200, 500)
-    for c in (1e-3, 0.7, 42.0):
-        scaled = dict(KNOWN, weights=[c * w for w in KNOWN["weights"]])
-        assert np.allclose(evaluate(scaled, x), evaluate(KNOWN, x), rtol=0, atol=1e-12)
+@st.composite
+def bcm_curves(draw):
+    """Any BCM of degree 1-8: weights with ratios up to 3600 either way, handles anywhere."""
+    n = draw(st.integers(1, 8))
+    lx = draw(st.floats(-1000, 1000))
+    rx = draw(st.floats(1.0, 5000))
+    weights = [60.0 ** draw(st.floats(-1, 1)) for _ in range(n + 1)]
+    handles = [draw(st.floats(-100, 100)) for _ in range(n + 1)]
+    return {"lx": lx, "rx": rx, "weights": weights, "handles": handles}
+
+
+@settings(max_examples=60, deadline=None)
+@given(bcm_curves(), st.floats(-9, 9), st.integers(0, 2**16))
+def test_weight_scale_invariance(c, log10_scale, seed):
+    # multiplying every weight by one constant is the same curve: why w_0 = 1 can be fixed
+    x = np.concatenate([np.random.default_rng(seed).uniform(c["lx"] - 100, c["lx"] + c["rx"] + 100, 200),
+                        [c["lx"], c["lx"] + c["rx"]]])
+    scaled = dict(c, weights=[10.0**log10_scale * w for w in c["weights"]])
+    assert np.allclose(evaluate(scaled, x), evaluate(c, x), rtol=0, atol=1e-12 * (1 + max(abs(v) for v in c["handles"])))
+    # and the scale really is all that may change: another weight ratio moves the curve
+    if len(c["weights"]) > 1 and np.ptp(c["handles"]) > 1e-3:
+        other = dict(c, weights=[c["weights"][0] * 4.0] + c["weights"][1:])
+        t = np.linspace(c["lx"], c["lx"] + c["rx"], 101)[1:-1]
+        assert np.max(np.abs(evaluate(other, t) - evaluate(c, t))) > 1e-9
 
 
 def test_end_points_and_clamping():
@@ -147,3 +166,16 @@ def test_higher_degree_is_never_worse_and_reaches_the_global_basin(example_sweep
     best = fit_bcm_global(r.x, r.y, 4)
     residual_stats(best, r.x, r.y)
     assert fast.rms <= 1.01 * best.rms
+
+
+def test_warm_start_from_a_lower_degree_fit(example_sweep):
+    # a caller fitting degree after degree (host compare) hands over its previous fit instead of
+    # letting every degree refit the ones below it; the elevated start is never worse than that fit
+    s = example_sweep
+    low = fit_model("bcm", s.x, s.y, 3)
+    warm = fit_model("bcm", s.x, s.y, 5, warm=low)  # a skipped degree is elevated too
+    assert warm.rms <= low.rms * (1 + 1e-9)
+    assert warm.rms <= fit_model("bcm", s.x, s.y, 5).rms * (1 + 1e-6)  # as good as its own chain here
+    assert fit_bcm(s.x, s.y, 6, warm=warm.coefficients).order == 6  # coefficients alone work too
+    with pytest.raises(ValueError, match="lower degree"):
+        fit_bcm(s.x, s.y, 5, warm=warm)

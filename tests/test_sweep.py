@@ -58,6 +58,43 @@ def test_single_rail_reading_is_kept():
     assert s.n_excluded == 0 and s.x[0] == 0 and s.x[-1] == 4095
 
 
+def test_repeated_readings_at_the_ends_of_a_slow_sweep_are_kept():
+    # a slow sweep that never reaches a rail: several readings per code, also at its first and
+    # last code (this used to lose its 4 + 4 end rows as "clipped")
+    rng = np.random.default_rng(3)
+    raw = np.repeat(np.arange(100, 3901, 25), 4).astype(float)
+    ref = raw * 60 / 4095 + rng.normal(0, 0.005, raw.size)
+    s = sweep_from_arrays(raw, ref)
+    assert s.exclusions == {} and s.x.size == raw.size
+
+
+def test_clipping_away_from_a_rail_is_seen_by_the_reference_moving():
+    # volts (no rail known): the divider saturates at 3.1 V while the reference goes on to 60 mm
+    v = np.linspace(0.2, 3.1, 60)
+    ref = v * 50 / 3.1
+    raw = np.concatenate([v, np.full(5, 3.1)])
+    ref = np.concatenate([ref, np.linspace(51, 60, 5)])
+    s = sweep_from_arrays(raw, ref)
+    assert s.exclusions == {"clipped_high": 6} and s.x[-1] < 3.1
+    # the same ends without the runaway reference are repeated readings: kept
+    steady = np.concatenate([ref[:60], ref[59] + np.array([0.002, -0.001, 0.0, 0.001, -0.002])])
+    assert sweep_from_arrays(raw, steady).exclusions == {}
+
+
+def test_full_scale_gives_rails_and_coverage_to_any_unit():
+    v = np.linspace(0.2, 0.5, 40)
+    assert sweep_from_arrays(v, v * 20).x.size == 40  # volts: no full scale known, no coverage check
+    with pytest.raises(UserError, match="covers only 0.3 of its full scale 3.3"):
+        sweep_from_arrays(v, v * 20, full_scale=3.3)
+    # with a full scale, ties at 0 V are on the rail even when the reference barely moved
+    raw = np.concatenate([[0.0, 0.0], np.linspace(0.1, 3.2, 40)])
+    ref = np.concatenate([[0.0, 0.001], np.linspace(0.1, 3.2, 40) * 18])
+    assert sweep_from_arrays(raw, ref).exclusions == {}
+    assert sweep_from_arrays(raw, ref, full_scale=3.3).exclusions == {"clipped_low": 2}
+    with pytest.raises(UserError, match="full scale must be a positive"):
+        sweep_from_arrays(raw, ref, full_scale=-1.0)
+
+
 def test_direction_column_follows_the_sort(tmp_path):
     raw, ref = _good_rows(30)
     lines = ["raw,reference,direction,temp"]

@@ -36,7 +36,14 @@ def add_parser(subparsers):
     p.add_argument("--budget", type=int, default=12, help="auto: most numbers the chosen model may store (default 12)")
     p.add_argument("--out", metavar="CALIB.json", help="write (or update) this pot's section of the calibration file")
     p.add_argument("--pot", choices=("pot1", "pot2"), default="pot1", help="which pot --out writes (default pot1)")
+    p.add_argument("--pot-id", metavar="ID",
+                   help="--out: identity of the physical pot, e.g. its serial (default: the one the file already "
+                   "records for --pot, else none)")
+    p.add_argument("--board", metavar="NAME", help="--out: identity of the board (default: keep the file's)")
     p.add_argument("--adc-bits", type=int, help="--out: the board's ADC bits (default: guessed from the raw range)")
+    p.add_argument("--full-scale", type=float, metavar="RAW",
+                   help="the converter's full scale in raw units, e.g. 3.3 for volts: rows tied on a rail (0 or "
+                   "this) are clipped, and the sweep must cover 25%% of it (default: known only for ADC codes)")
     p.add_argument("--plot", metavar="FIT.png", help="draw data, fit and residuals to this PNG")
     p.add_argument("--unit", default="mm", help="the reference unit, for reports and plots (default mm)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
@@ -96,8 +103,9 @@ def adc_bits_of(sweep):
     return fs.bit_length()
 
 
-def write_pot(path, pot, result, adc_bits):
-    """Write `result` as section `pot` of the calibration file; returns the file's CRC."""
+def write_pot(path, pot, result, adc_bits, pot_id=None, board=None):
+    """Write `result` as section `pot` of the calibration file (with the pot's and the board's
+    identity when given); returns the file's CRC."""
     try:
         from host.calibration_file import pot_section, update_section
     except ImportError:
@@ -108,7 +116,7 @@ def write_pot(path, pot, result, adc_bits):
         coeffs = elevate(result.coefficients, 3)
         result = dataclasses.replace(result, order=3, coefficients=coeffs,
                                      notes=result.notes + ["degree %d elevated to 3 (same curve)" % result.order])
-    update_section(path, pot, pot_section(result, adc_bits))
+    update_section(path, pot, pot_section(result, adc_bits, pot_id=pot_id), board=board)
     from firmware.calibration import parse_document  # the CRC the board will check
 
     with open(path) as fh:
@@ -141,7 +149,7 @@ def run(args):
 
     _check_model_available(args.model)
     say = (lambda msg: None) if args.json else (lambda msg: print(msg, file=sys.stderr, flush=True))
-    sweep = load_sweep(args.sweep)
+    sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()
     result, floors, reason = fit_sweep(sweep, args.model, args.order, args.bounds, args.budget, progress=say)
     noise = floors["noise_floor"]
@@ -171,10 +179,11 @@ def run(args):
         bits = args.adc_bits or adc_bits_of(sweep)
         say("writing %s section of %s (%d-bit ADC)" % (args.pot, args.out, bits))
         try:
-            crc = write_pot(args.out, args.pot, result, bits)
+            crc = write_pot(args.out, args.pot, result, bits, pot_id=args.pot_id, board=args.board)
         except OSError as exc:
             raise UserError("cannot write calibration %s: %s" % (args.out, exc)) from None
-        out["calibration"] = {"path": str(args.out), "section": args.pot, "crc32": crc, "adc_bits": bits}
+        out["calibration"] = {"path": str(args.out), "section": args.pot, "crc32": crc, "adc_bits": bits,
+                              "board": args.board, "pot_id": args.pot_id}
     if args.json:
         print(json.dumps(out, indent=2, default=float))
         return 0
