@@ -55,16 +55,14 @@ def test_load_on_a_real_port_is_a_one_line_error(capsys):
 
 
 def test_bad_load_is_refused_by_the_parser(capsys):
-    with pytest.raises(SystemExit) as exc:
-        cli.main(["force", "--port", "sim", "--load", "spring", "--target", "-5"])
-    assert exc.value.code == 2
-    assert "load must be none, gauge[@MM], gauge-low[@MM] or constant:N" in capsys.readouterr().err
+    assert cli.main(["force", "--port", "sim", "--load", "spring", "--target", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "load must be none, gauge[@MM], gauge-low[@MM] or constant:N" in err
 
 
 def test_help_of_sim_and_force_tells_how_to_hook_a_load(capsys):
     for command in ("sim", "force"):
-        with pytest.raises(SystemExit):
-            cli.main([command, "--help"])
+        assert cli.main([command, "--help"]) == 0
         text = " ".join(capsys.readouterr().out.split())
         assert "--load none|gauge[@MM]|gauge-low[@MM]|constant:N" in text and "force gauge" in text
 
