@@ -173,9 +173,8 @@ class App:
         if mode == POSITION:
             c.target = c.meas.d2  # hold where it is until told otherwise
         elif mode == FORCE:
-            c.meas.deformation_targets(0, c.defl_targets)
+            c.set_force_target(0)
             c.fdir = 0
-            c.target = 0
         else:
             c.target = 0
         c.mode = mode
@@ -193,7 +192,7 @@ class App:
         elif c.mode == FORCE:
             if not -FORCE_TARGET_MAX_MN <= value <= FORCE_TARGET_MAX_MN:
                 raise ValueError("force target must be within +-%d mN" % FORCE_TARGET_MAX_MN)
-            c.meas.deformation_targets(value, c.defl_targets)
+            c.set_force_target(value)
         c.target = value
 
     def params(self):

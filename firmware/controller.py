@@ -68,7 +68,10 @@ class Controller:
         self.period_us = 1000000 // loop_hz
         self.mode = IDLE
         self.target = 0  # duty (open_loop), um (position) or mN (force)
-        self.defl_targets = array("i", [0, 0, 0])  # um per friction direction -1/0/+1 (Measurement)
+        # Force mode: [deformation um for friction edge -1, 0, +1, force target mN]. Written
+        # whole into the spare and swapped in by one assignment, so the step never sees a mix.
+        self.force_set = array("i", [0, 0, 0, 0])
+        self._spare_set = array("i", [0, 0, 0, 0])
         self.fdir = 0  # force mode: which side of the friction band the spring must work from
         self.duty = 0
         self.t_us = 0
@@ -121,18 +124,22 @@ class Controller:
                 cmd = self.pi.update(self.target - m.d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT])
             else:
                 # With the block's friction h calibrated, the load's force only moves once the
-                # spring force leaves a band 2h wide: to lower it the spring must work from the
-                # band's lower edge (target - h), to raise it from the upper one. Which edge is
-                # decided by the load-force estimate against the target, with h/8 of hysteresis
-                # so that the choice does not chatter once the target is reached.
-                e = self.target - m.force
-                tol = m.fric >> 3
+                # spring force leaves a band 2h wide around it: to lower it the spring works from
+                # the band's lower edge (target - h), to raise it from the upper one. Once the
+                # load-force estimate is within h/16 of the target the spring parks in the
+                # middle of the band (the target itself), h away from both edges, so that noise
+                # can no longer slide the block and the choice cannot chatter.
+                fs = self.force_set
+                e = fs[3] - m.force
+                tol = m.fric >> 4
                 if e < -tol:
                     self.fdir = 1
                 elif e > tol:
                     self.fdir = -1
+                else:
+                    self.fdir = 0
                 cmd = self.pi.update(
-                    self.defl_targets[self.fdir + 1] - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]
+                    fs[self.fdir + 1] - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]
                 )
             if m is not None:
                 cmd = self._stroke_limit(cmd, m.d1, m.d2)
@@ -151,6 +158,16 @@ class Controller:
                 r.write_record(
                     self.t_us, s.raw1, s.raw2, s.raw_ref, m.d1, m.d2, m.defl, m.force, self.target, duty, mode, sf.faults
                 )
+
+    def set_force_target(self, force_mN):
+        """Outside the interrupt: the deformation targets of a new force target (through the
+        calibration's d(F0) and friction), then one swap of the whole set."""
+        spare = self._spare_set
+        self.meas.deformation_targets(force_mN, spare)
+        spare[3] = force_mN
+        self._spare_set = self.force_set
+        self.force_set = spare
+        self.target = force_mN
 
     def _stroke_limit(self, cmd, d1, d2):
         """Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room / slow_zone_um,

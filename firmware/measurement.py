@@ -22,6 +22,7 @@ error the controllers form from them stay within +-2**17; the filtered force is 
 from firmware.portable import const
 
 STROKE_CLAMP_UM = const(65535)
+FORCE_CLAMP_MN = const(1000000)
 
 try:
     from firmware.bcm_fixed import bcm3
@@ -97,6 +98,12 @@ class Measurement:
             self.force = self._load_force(f) if self.fric else f
 
     def _load_force(self, spring_mN):
+        # A file's F0 may reach 2**29 mN (poly_fixed's bound); 1 kN is far beyond any spring
+        # here and keeps x << 5 and the differences below within 2**30 (h <= 10 N).
+        if spring_mN > FORCE_CLAMP_MN:
+            spring_mN = FORCE_CLAMP_MN
+        elif spring_mN < -FORCE_CLAMP_MN:
+            spring_mN = -FORCE_CLAMP_MN
         x = spring_mN << 5
         if not self.primed:
             self.fs32 = x
