@@ -33,21 +33,20 @@ def _run(out, extra):
 
 
 def _figures(results):
-    """The summary figures of one run's results.json (the same the report judges)."""
-    from host.experiments import displacement
+    """The summary figures of one run's results.json (those the report judges)."""
+    from host.experiments.report import headline
 
+    h = headline(results)
     t1 = results["table1"]
-    paper_rows = [x for x in t1 if x.get("side", "high") == "high" and x.get("phase", "loading") == "loading"]
-    with_df = [b for n, b in results["fig8"] if n == "with Df"]
     return {
         "Df peak after, 1 mm bin means (mm)": "%.3f (order %d)" % (results["fig5"]["peak_after_binned_mm"], results["fig5"]["order"]),
-        "displacement max error 1-59 mm (mm)": "%.3f" % displacement.max_error(results["fig7"]["after"]),
-        "no-load force runs, D2 at the end (mm)": ", ".join("%+.0f N: %.1f" % (b["target_n"], b["final"]) for b in with_df),
+        "displacement max error 1-59 mm (mm)": "%.3f" % h["after"],
+        "no-load force runs, D2 at the end (mm)": ", ".join("%+.0f N: %.1f" % (b["target_n"], b["final"]) for b in h["with_df"]),
         "dead zone (N)": "%.1f" % results["dead_zone"]["dead_zone_n"],
-        "Table 1 -5/-10/-15 N steady-state (%)": " / ".join("%+.1f" % x["steady_pct"] for x in paper_rows),
-        "Table 1 -5/-10/-15 N estimation (%)": " / ".join("%+.1f" % x["estimation_pct"] for x in paper_rows),
+        "Table 1 -5/-10/-15 N steady-state (%)": " / ".join("%+.1f" % x["steady_pct"] for x in h["paper_rows"]),
+        "Table 1 -5/-10/-15 N estimation (%)": " / ".join("%+.1f" % x["estimation_pct"] for x in h["paper_rows"]),
         "worst steady-state / estimation error, all steps (%)": "%.1f / %.1f over %d steps" % (
-            max(abs(x["steady_pct"]) for x in t1), max(abs(x["estimation_pct"]) for x in t1), len(t1)),
+            h["worst_steady_pct"], h["worst_estimation_pct"], len(t1)),
         "pot models": "pot 1 %s, pot 2 %s" % (results["pot_models"]["pot1"], results["pot_models"]["pot2"]),
         "wall time (s)": "%.0f" % results["timings"]["total"],
     }

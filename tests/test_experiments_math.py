@@ -57,11 +57,12 @@ def _results(after_error_mm, df_binned_mm, force_pct):
     return {
         "board": "sim", "simulated": True, "port": "sim", "model": "auto (budget 32 numbers)",
         "pot_models": {"pot1": "pwl order 12", "pot2": "pwl order 11"},
-        "method": {"df_order": "auto", "force_order": "auto", "gauge_sides": "both", "friction": True, "budget": 32},
+        "method": {"df_order": "auto", "force_order": "auto", "gauge_sides": "both", "friction": True, "budget": 32,
+                   "rounds": 2, "force_order_chosen": 4},
         "calibration": {"pots": ["pot1 fit: pwl"], "assembly": ["Df: order 7"], "force": ["force: h"]},
         "calibration_plots": ["calibration-pot1.png"],
         "paper_method_offline": {"pot1": {"rms_mm": 0.075, "max_mm": 0.19}, "pot2": {"rms_mm": 0.095, "max_mm": 0.42},
-                                 "df4_binned_mm": 0.3},
+                                 "df4_binned_mm": 0.3, "force2_rms_n": 0.22},
         "fig3a": [{"model": "bcm", "order": 3, "norm2": 3.9}] + [{"model": "pcm", "order": n, "norm2": 40.0 / n} for n in range(2, 13)],
         "fig5": {"order": 7, "peak_before_mm": 4.5, "peak_after_mm": 0.15, "peak_after_binned_mm": df_binned_mm,
                  "rms_after_mm": 0.037, "n_samples": 1964},
@@ -82,7 +83,7 @@ def test_report_renders_every_section_and_judges_each_target(tmp_path):
 
     from host.experiments import report
 
-    opts = SimpleNamespace(rounds=2)
+    opts = SimpleNamespace()  # everything the report says comes from the results
     text = report.write(tmp_path, _results(0.05, 0.2, 1.0), opts).read_text()
     for heading in ("## Summary", "## Fig. 3a", "## Fig. 5", "## Fig. 7", "## Fig. 8", "## Force dead zone", "## Table 1"):
         assert heading in text
@@ -91,7 +92,8 @@ def test_report_renders_every_section_and_judges_each_target(tmp_path):
     assert "NOT met" in lines["Df calibration (Fig. 5)"]  # 0.2 mm of bin means
     assert "no blocking at +-1 to 10 N: met" in lines["force control 5 N at no load from 30 mm (Fig. 8)"]
     assert "worst of all 10 steps (both signs, loading and unloading) 1.0 %" in text and "<= 2 %: met" in text
-    assert "0.30 N in the simulated actuator's file, 6 % of 5 N" in text and "limit (59.5 mm)" in text
+    assert "0.30 N in the simulated actuator's file, 6 % of 5 N" in text and "(0.5 and 59.5 mm)" in text
+    assert "Df order: auto -> 7. Force: order auto -> 4" in text and "2 force identification rounds" in text
     assert "| 30 | 28.000 | 2.000 | 29.950 | 0.050 |" in text and "0.050 (not settled)" in text  # 59 mm unsettled
     worse = report.write(tmp_path, _results(0.5, 0.05, 3.0), opts).read_text()
     assert "<= 0.1 mm: **NOT met**" in worse and "<= 2 %: **NOT met**" in worse

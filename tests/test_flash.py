@@ -91,9 +91,11 @@ def gauge_display(board, after, timeout=3.0):
 def test_force_on_the_flashed_board_pulls_the_hooked_gauge_to_the_target(flashed, capsys):
     # As on the paper's bench: move the block above the anchor, hook the gauge (the fibre hangs
     # slack: tare), then pull -5 N with the force loop. The gauge must then show 5 N of tension
-    # (less the tare) within what the block's Coulomb friction h allows: the block at rest takes up
-    # to h of the spring's force, and the firmware's friction model may put the spring on either
-    # edge of the 2h band around the target, so 2h plus the 0.1 N settle tolerance.
+    # (less the tare). The bound is loose on purpose: this board runs the model calibration
+    # (tests/fake_hardware.py: the ideal spring curve and the block's nominal friction, not
+    # identified against this gauge), whose force estimate is ~0.3 N off the load's true force
+    # here; 2h (0.6 N) plus the 0.1 N settle tolerance covers it. The 2 % accuracy of an
+    # identified calibration is tested in tests/test_firmware_sim.py.
     board, _ = flashed
     h = json.loads(board.board_path.read_text())["actuator"]["block"]["coulomb_n"]
     assert cli.main(["move", "--port", board.path, "--to", "45", "--timeout", "20"]) == 0

@@ -46,7 +46,7 @@ def add_method_arguments(p):
     p.add_argument("--paper-method", action="store_true",
                    help="the paper's method: BCM-3 pots, a quartic Df, quadratic force fits without friction, gauge "
                    "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
-                   "--gauge-sides high --no-friction)")
+                   "--gauge-sides high --no-friction, and it overrides those options)")
     p.add_argument("--model", default="auto", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")

@@ -5,6 +5,8 @@
   reaches the target deformation part-way and the block stops ("blocks").
 - dead zone: with the gauge hooked (fibre just slack at the anchor), force targets 0..-5 N in
   0.2 N steps; the dead zone is the largest |target| whose measured |force| is below half of it.
+Each sequence tares the gauge with the fibre slack before and after, and takes every reading
+against the tare interpolated to its time (the gauge's zero drifts).
 - steps (Table 1): targets -5, -10, -15 N and back through -10, -5 N (loading, then unloading)
   with the gauge on the 60 mm side as in the paper, and +5, +10, +15, +10, +5 N with the gauge on
   the 0 mm side; steady-state error (gauge vs target) and estimation error (firmware's force
@@ -14,7 +16,7 @@
 import numpy as np
 
 from host.guided import acquire
-from host.guided.force_calibration import SIDES
+from host.guided.force_calibration import SIDES, GaugeOnSide
 from host.guided.prompts import end_progress, progress_line
 
 STEPS_N = (5.0, 10.0, 15.0, 10.0, 5.0)  # magnitudes: loading, then unloading
@@ -35,65 +37,57 @@ def blocking_run(session, rig, target_n, seconds=4.0):
     return {"t": t, "d2": d2, "final": final, "target_n": target_n}
 
 
-def _hook_slack(session, rig, anchor_mm, side="high"):
-    client = session.client
-    slack = anchor_mm + 0.2 if side == "high" else anchor_mm - 0.2
-    if rig.state["load"].get("kind") == "gauge":
-        rig.no_load()
-    acquire.hold(client, "position", int(slack * 1000), "d2_um", 50, timeout_s=8.0, measure_s=0.1)
-    client.call("stop")
-    rig.hook_gauge(anchor_mm, side)
-    if rig.gauge == "adc":
-        return rig.read_gauge_n(client)
-    return float(np.mean([rig.gauge_reading_n() for _ in range(3 if rig.virtual else 1)]))
-
-
-def _force_hold(session, rig, target_n, tare, settle_s, measure_s=0.4, side="high"):
-    client = session.client
+def _hold(client, gauge, target_n, settle_s, measure_s):
+    """Force mode at `target_n`: settle, log, record the gauge; the firmware's mean estimate."""
     client.call("target", int(round(target_n * 1000)))
     acquire.collect(client, settle_s)
     rec = acquire.collect(client, measure_s)
-    gauge = SIDES[side] * (rig.read_gauge_n(client, rec) - tare)  # the gauge shows tension; the side gives the sign
-    return gauge, acquire.mean(rec, "force_mN") / 1000.0
+    gauge.record(rec)
+    return acquire.mean(rec, "force_mN") / 1000.0
 
 
-def dead_zone(session, rig, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
-    tare = _hook_slack(session, rig, anchor_mm)
+def _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, measure_s, label):
+    """Force targets in turn against the gauge on `side`, hooked with the fibre just slack (0.2 mm)
+    and tared before and after (the zero drifts): (targets, gauge forces, firmware estimates)."""
     client = session.client
+    gauge = GaugeOnSide(session, rig, prompter, anchor_mm, side, gap_mm=0.2)
+    gauge.tare()
     acquire.reset(client)
     client.call("mode", "force")
-    rows = []
-    for target in np.arange(0.0, top_n + 1e-9, step_n):
-        measured, estimate = _force_hold(session, rig, -target, tare, settle_s, 0.2)
-        rows.append({"target": -float(target), "measured": measured, "estimate": estimate})
-        progress_line("  dead zone: target %+.1f N, gauge %+.2f N" % (-target, measured))
+    estimates = []
+    for target in targets:
+        estimates.append(_hold(client, gauge, target, settle_s, measure_s))
+        progress_line("  %s: target %+.1f N, estimate %+.2f N" % (label, target, estimates[-1]))
     end_progress()
+    gauge.tare(move=True)
     client.call("stop")
+    return targets, gauge.forces(), estimates
+
+
+def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
+    targets = [-float(t) for t in np.arange(0.0, top_n + 1e-9, step_n)]
+    targets, measured, estimates = _sequence(session, rig, prompter, anchor_mm, "high", targets, settle_s, 0.2, "dead zone")
+    rows = [{"target": t, "measured": float(m), "estimate": e} for t, m, e in zip(targets, measured, estimates)]
     dz = max([abs(r["target"]) for r in rows if abs(r["measured"]) < 0.5 * abs(r["target"])] or [0.0])
     return rows, dz
 
 
-def force_steps(session, rig, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5):
+def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5):
     """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it)."""
-    tare = _hook_slack(session, rig, anchor_mm, side)
-    client = session.client
-    acquire.reset(client)
-    client.call("mode", "force")
+    targets = [SIDES[side] * m for m in magnitudes]
+    _, measured, estimates = _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
+                                       "%s-side steps" % side)
     rows = []
     peak = 0.0
-    for magnitude in magnitudes:
-        target = SIDES[side] * magnitude
-        measured, estimate = _force_hold(session, rig, target, tare, settle_s, 0.5, side)
+    for magnitude, target, m, e in zip(magnitudes, targets, measured, estimates):
+        m = float(m)
         rows.append({
-            "target": target, "measured": measured, "estimate": estimate, "side": side,
+            "target": target, "measured": m, "estimate": e, "side": side,
             "phase": "loading" if magnitude > peak else "unloading",
-            "steady_pct": 100.0 * (measured - target) / abs(target),
-            "estimation_pct": 100.0 * (estimate - measured) / abs(measured) if measured else float("nan"),
+            "steady_pct": 100.0 * (m - target) / abs(target),
+            "estimation_pct": 100.0 * (e - m) / abs(m) if m else float("nan"),
         })
         peak = max(peak, magnitude)
-        progress_line("  step %+.0f N: gauge %+.2f N, estimate %+.2f N" % (target, measured, estimate))
-    end_progress()
-    client.call("stop")
     rig.no_load()
     return rows
 

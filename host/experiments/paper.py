@@ -14,6 +14,7 @@ from pathlib import Path
 
 from host.experiments import displacement, force_runs, model_compare, report, variants
 from host.guided.flow import STEPS, run_steps
+from host.guided.force_calibration import gauge_sides
 
 
 def _save_sweep(path, data):
@@ -36,11 +37,15 @@ def save_results(path, results):
     Path(path).write_text(json.dumps(results, default=plain, indent=1) + "\n")
 
 
-def paper_method_offline(pots, assembly):
-    """The paper's fits on this run's own sweeps, for comparison: BCM-3 per pot, a quartic Df.
-    (The Df data were converted with this run's pot curves; the closed-loop figures of the
-    paper's method need a run of their own: --paper-method.)"""
+def paper_method_offline(pots, assembly, force):
+    """The paper's fits on this run's own data, for comparison: BCM-3 per pot, a quartic Df, a
+    quadratic F0(d) without friction on the 60 mm side's points (the paper's rig). (The Df and
+    force data were converted with this run's curves; the closed-loop figures of the paper's
+    method need a run of their own: --paper-method.)"""
+    import numpy as np
+
     from host.guided.assembly_calibration import binned_peak, fit_df
+    from host.guided.force_calibration import TAUT_N, fit_force
     from host.models import fit_model
 
     out = {}
@@ -49,6 +54,11 @@ def paper_method_offline(pots, assembly):
         out[pot] = {"rms_mm": fit.rms, "max_mm": fit.max_abs}
     _, resid, _, _ = fit_df(assembly["d1_mm"], assembly["df_mm"], 4)
     out["df4_binned_mm"] = binned_peak(assembly["d1_mm"], resid)
+    f = np.asarray(force["force_n"])
+    pulled = f < -TAUT_N
+    if np.count_nonzero(pulled) > 6:
+        out["force2_rms_n"] = fit_force(np.asarray(force["d_mm"])[pulled], f[pulled], np.asarray(force["s"])[pulled],
+                                        2, friction=False).rms_n
     return out
 
 
@@ -79,7 +89,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     results["calibration_plots"] = [p.name for s in STEPS for p in accepted[s].plots]
     pots = accepted["pots"].data
     results["pot_models"] = {pot: "%s order %d" % (pots[pot]["fit"].model, pots[pot]["fit"].order) for pot in ("pot1", "pot2")}
-    results["paper_method_offline"] = paper_method_offline(pots, accepted["assembly"].data)
+    results["paper_method_offline"] = paper_method_offline(pots, accepted["assembly"].data, accepted["force"].data)
     for pot in ("pot1", "pot2"):
         _save_sweep(out_dir / ("sweep-%s.csv" % pot), pots[pot])
     calibrated = Path(opts.out)
@@ -97,7 +107,8 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
                             "hysteresis_n": fd["hysteresis_n"], "friction_n": fd["friction_n"],
                             "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"])}
     results["method"] = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
-                         "friction": opts.friction, "budget": opts.budget}
+                         "friction": opts.friction, "budget": opts.budget, "rounds": opts.rounds,
+                         "force_order_chosen": int(fd["order"])}
 
     t = time.monotonic()
     bits = session.board["adc_bits"]
@@ -123,11 +134,11 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
 
     t = time.monotonic()
     say("== force dead zone ==")
-    dz_rows, dz = force_runs.dead_zone(session, rig, opts.anchor_mm)
+    dz_rows, dz = force_runs.dead_zone(session, rig, prompter, opts.anchor_mm)
     results["dead_zone"] = {"rows": dz_rows, "dead_zone_n": dz}
     say("== Table 1: force steps ==")
-    sides = ("high", "low") if opts.gauge_sides == "both" else (opts.gauge_sides,)
-    results["table1"] = [row for side in sides for row in force_runs.force_steps(session, rig, opts.anchor_mm, side)]
+    results["table1"] = [row for side in gauge_sides(opts.gauge_sides)
+                         for row in force_runs.force_steps(session, rig, prompter, opts.anchor_mm, side)]
     timings["force"] = time.monotonic() - t
     timings["total"] = time.monotonic() - t0
     results["timings"] = timings

@@ -22,6 +22,25 @@ TARGETS = {
 }
 
 
+def headline(r):
+    """The figures the summary judges, from a run's results (shared with bench/bench_paper.py)."""
+    t1 = r["table1"]
+    with_df = [b for n, b in r["fig8"] if n == "with Df"]
+    return {
+        "before": displacement.max_error(r["fig7"]["before"]),
+        "after": displacement.max_error(r["fig7"]["after"]),
+        "worst_steady_pct": max(abs(x["steady_pct"]) for x in t1),
+        "worst_estimation_pct": max(abs(x["estimation_pct"]) for x in t1),
+        # the paper's Table 1: pulling toward 0 mm, loading
+        "paper_rows": [x for x in t1 if x.get("side", "high") == "high" and x.get("phase", "loading") == "loading"],
+        "without_df": [b for n, b in r["fig8"] if n == "without Df"],
+        "with_df": with_df,
+        # a positive force runs the free block toward 60 mm, a negative one toward 0 mm
+        "no_blocking": all((b["final"] >= TARGETS["blocking_from_mm"]) if b["target_n"] > 0
+                           else (b["final"] <= 60.0 - TARGETS["blocking_from_mm"]) for b in with_df),
+    }
+
+
 def _met(ok):
     return "met" if ok else "**NOT met**"
 
@@ -51,38 +70,32 @@ def write(out_dir, r, opts, command=None):
             "hooked or not) is applied by `boards/sim/bench_rig.py`. None of this is the paper's hardware: the "
             "comparison shows whether the method reproduces the paper's effects, not the paper's actuator.")
         add("")
+    m0 = r.get("method", {})
     add("**Shortened from the paper** (to keep the run to a few minutes): %d force identification rounds per gauge "
         "side (paper 5), %d displacement targets (%s mm; the paper's run to 60 mm, the firmware's soft stroke limits "
         "at %s and %s mm keep the block off the end stops), one sweep per pot." % (
-            opts.rounds, len(r["fig7"]["after"]), ", ".join("%g" % t["target"] for t in r["fig7"]["after"]),
+            m0.get("rounds", getattr(opts, "rounds", 0)), len(r["fig7"]["after"]), ", ".join("%g" % t["target"] for t in r["fig7"]["after"]),
             _f(r.get("stroke_mm", (None, None))[0], 1), _f(r.get("stroke_mm", (None, None))[1], 1)))
     add("")
     m = r.get("method", {})
-    add("**Method.** Pot model: %s -> pot 1 %s, pot 2 %s. Df order: %s. Force: order %s, gauge side(s) %s, "
+    add("**Method.** Pot model: %s -> pot 1 %s, pot 2 %s. Df order: %s -> %d. Force: order %s -> %s, gauge side(s) %s, "
         "block friction %s. (`--paper-method` runs the paper's choices: BCM-3, quartic Df, quadratic force fits "
         "without friction, gauge on the 60 mm side.) Timings: %s." % (
-            r["model"], r["pot_models"]["pot1"], r["pot_models"]["pot2"], m.get("df_order"), m.get("force_order"),
+            r["model"], r["pot_models"]["pot1"], r["pot_models"]["pot2"], m.get("df_order"), r["fig5"]["order"],
+            m.get("force_order"), m.get("force_order_chosen", "-"),
             m.get("gauge_sides"), "identified and compensated" if m.get("friction") else "not modelled",
             ", ".join("%s %.0f s" % kv for kv in r["timings"].items())))
     add("")
 
     # summary table
-    before = displacement.max_error(r["fig7"]["before"])
-    after = displacement.max_error(r["fig7"]["after"])
-    fig5 = r["fig5"]
-    t1 = r["table1"]
-    worst_ss = max(abs(x["steady_pct"]) for x in t1)
-    worst_est = max(abs(x["estimation_pct"]) for x in t1)
-    paper_rows = [x for x in t1 if x.get("side", "high") == "high" and x.get("phase", "loading") == "loading"]
+    h = headline(r)
+    before, after, fig5, t1 = h["before"], h["after"], r["fig5"], r["table1"]
+    worst_ss, worst_est, paper_rows = h["worst_steady_pct"], h["worst_estimation_pct"], h["paper_rows"]
+    without, with_df, no_block = h["without_df"], h["with_df"], h["no_blocking"]
+    blocking = r["fig8"]
     rows3 = r["fig3a"]
     bcm3 = model_compare.norm_at(rows3, "bcm", 3)
     match = model_compare.pcm_order_matching(rows3, bcm3)
-    blocking = r["fig8"]
-    without = [b for n, b in blocking if n == "without Df"]
-    with_df = [b for n, b in blocking if n == "with Df"]
-    # a positive force runs the free block toward 60 mm, a negative one toward 0 mm
-    no_block = all((b["final"] >= TARGETS["blocking_from_mm"]) if b["target_n"] > 0
-                   else (b["final"] <= 60.0 - TARGETS["blocking_from_mm"]) for b in with_df)
     add("## Summary")
     add("")
     add("| experiment | paper | this run | target (simulated actuator) |")
@@ -112,11 +125,10 @@ def write(out_dir, r, opts, command=None):
     if off:
         add("The paper's fits on this run's own sweeps: BCM-3 leaves pot 1 rms %s / max %s mm and pot 2 rms %s / max %s mm "
             "(the chosen pot curves: see Calibration); a quartic Df leaves a %s mm peak of 1 mm bin means (order %d here: %s mm); "
-            "force fits without the friction term leave rms %s N (%s)." % (
+            "a quadratic F0(d) without the friction term on the 60 mm side's points leaves rms %s N (this run's F0: %s N)." % (
                 _f(off["pot1"]["rms_mm"]), _f(off["pot1"]["max_mm"]), _f(off["pot2"]["rms_mm"]), _f(off["pot2"]["max_mm"]),
                 _f(off["df4_binned_mm"]), fig5["order"], _f(fig5["peak_after_binned_mm"]),
-                _f(r["force_fit"].get("rms_plain_n")),
-                "with it: %s N" % _f(r["force_fit"].get("rms_n")) if m.get("friction") else "this run's fit"))
+                _f(off.get("force2_rms_n")), _f(r["force_fit"].get("rms_n"))))
         add("")
 
     add("## Calibration (host calibrate, logged in this run)")
@@ -174,8 +186,10 @@ def write(out_dir, r, opts, command=None):
         add("| %s | %+.0f | %s |" % (name, b["target_n"], _f(b["final"], 2)))
     add("")
     add("Without the Df correction the firmware's deformation includes Df(D1), which reaches the 5 N target deformation "
-        "part-way, and the block stops there (paper: 43.1 mm). With it the block runs on toward the 60 mm end, where "
-        "the firmware's soft stroke limit (%s mm) stops it." % _f(r.get("stroke_mm", (None, None))[1], 1))
+        "part-way, and the block stops there (paper: 43.1 mm). With it a free block under a positive force target runs "
+        "on toward the 60 mm end and one under a negative target toward 0 mm, where the firmware's soft stroke limits "
+        "(%s and %s mm) stop it; a block that ends elsewhere, or at the wrong end, blocked." % (
+            _f(r.get("stroke_mm", (None, None))[0], 1), _f(r.get("stroke_mm", (None, None))[1], 1)))
     add("")
     add("![Fig. 8](fig8.png)")
     add("")

@@ -13,7 +13,7 @@ Why a friction term: the block slides on its slider between the spring and the f
 gauge reads the spring force minus the block's Coulomb friction h in the direction the block
 slid: F_gauge = F0(d) + h * s, with s = +1 after the force fell (the block slid toward 0 mm) and
 -1 after it rose. Fitted without it, loading and unloading disagree by ~2h and the fit carries
-+-h of error (rms 0.22 N on the simulated actuator against 0.02 N with it). F0 and h are fitted
++-h of error (rms 0.22 N on the simulated actuator against 0.03 N with it: docs/paper-experiments.md). F0 and h are fitted
 together by linear least squares (h is one more column); d(F0) is fitted to the spring force
 F_gauge - h * s. The firmware turns h into a play operator on F0(d) (firmware/measurement.py).
 Orders: `auto` (the default) picks the lowest within 5 % of the best 5-fold cross-validated
@@ -38,16 +38,14 @@ TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about
 SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
 
-def _gauge(rig, client, reads=1, records=None):
-    """The gauge's reading (N): `reads` display readings averaged, or the gauge channel."""
-    if rig.gauge == "adc":
-        return rig.read_gauge_n(client, records)
-    return float(np.mean([rig.gauge_reading_n() for _ in range(reads)]))
+def gauge_sides(choice):
+    """The gauge sides a --gauge-sides choice runs, in order."""
+    return ("high", "low") if choice == "both" else (choice,)
 
 
-def slack_position_mm(anchor_mm, side):
-    """Where the block waits while the fibre is hooked: 1.5 mm on the slack side of the anchor."""
-    return anchor_mm + 1.5 if side == "high" else anchor_mm - 1.5
+def slack_position_mm(anchor_mm, side, gap_mm=1.5):
+    """Where the block waits while the fibre hangs slack: `gap_mm` on the slack side of the anchor."""
+    return anchor_mm + gap_mm if side == "high" else anchor_mm - gap_mm
 
 
 def _move_slack(client, start):
@@ -59,35 +57,66 @@ def _move_slack(client, start):
             start, status.get("mode"), ", ".join(status.get("faults") or []) or "none"))
 
 
-def force_points(session, rig, prompter, opts, side="high"):
-    """(d_mm, force_N, s, loading, tares) from `opts.rounds` loading/unloading rounds against a
-    gauge on `side`. force_N is the actuator's force (negative toward 0 mm); s is the friction
-    direction of each point (+1 after the force fell, -1 after it rose).
+class GaugeOnSide:
+    """The force gauge hooked on one side, read against its drifting zero.
 
     The gauge's zero drifts (the paper notes it; 0.3 N/min would be 0.1 N over a side's rounds,
-    2 % of 5 N), so the fibre is slackened and the gauge tared before the first round and after
-    every round, and each reading is taken against the tare interpolated to its time."""
+    2 % of 5 N), so the caller slackens the fibre and tares (`tare()`) before and after its
+    loading; `forces()` takes every reading against the tare interpolated to its time, and
+    gives it the side's sign (the gauge shows tension; pulling the block toward 0 mm is a
+    negative actuator force)."""
+
+    def __init__(self, session, rig, prompter, anchor_mm, side, gap_mm=1.5):
+        self.client = session.client
+        self.rig = rig
+        self.side = side
+        self.start = slack_position_mm(anchor_mm, side, gap_mm)
+        if rig.state["load"].get("kind") == "gauge":  # the other side's gauge would hold the block
+            rig.no_load()
+        prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % self.start)
+        _move_slack(self.client, self.start)
+        rig.hook_gauge(anchor_mm, side)
+        self.tare_t, self.tares, self.read_t, self.readings = [], [], [], []
+
+    def read(self, records=None, reads=1):
+        """One reading in N (display readings averaged, or the gauge channel over `records`)."""
+        if self.rig.gauge == "adc":
+            return self.rig.read_gauge_n(self.client, records)
+        return float(np.mean([self.rig.gauge_reading_n() for _ in range(reads)]))
+
+    def tare(self, move=False):
+        """Tare with the fibre slack (after moving the block back to slack when `move`)."""
+        if move:
+            self.client.call("stop")
+            _move_slack(self.client, self.start)
+        self.tares.append(self.read(reads=3 if self.rig.virtual else 1))  # a person reads each tare once
+        self.tare_t.append(time.monotonic())
+
+    def record(self, records=None):
+        """Take a loaded reading now (kept with its time); returns its raw value."""
+        g = self.read(records)
+        self.readings.append(g)
+        self.read_t.append(time.monotonic())
+        return g
+
+    def forces(self):
+        """The actuator forces (N) of every recorded reading, against the interpolated tare."""
+        zero = np.interp(self.read_t, self.tare_t, self.tares)
+        return SIDES[self.side] * (np.array(self.readings) - zero)
+
+
+def force_points(session, rig, prompter, opts, side="high"):
+    """(d_mm, force_N, s, loading, tares) from `opts.rounds` loading/unloading rounds against a
+    gauge on `side`, tared before the first round and after every round (GaugeOnSide).
+    force_N is the actuator's force (negative toward 0 mm); s is the friction direction of
+    each point (+1 after the force fell, -1 after it rose)."""
     client = session.client
-    anchor = opts.anchor_mm
     sign = SIDES[side]
-    start = slack_position_mm(anchor, side)
-    if rig.state["load"].get("kind") == "gauge":  # the other side's gauge would hold the block
-        rig.no_load()
-    prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % start)
-    _move_slack(client, start)
-    rig.hook_gauge(anchor, side)
-    reads = 3 if rig.virtual else 1  # a person reads each tare once
-
-    tare_t, tares = [], []
-
-    def tare():
-        tares.append(_gauge(rig, client, reads))
-        tare_t.append(time.monotonic())
-
+    gauge = GaugeOnSide(session, rig, prompter, opts.anchor_mm, side)
     prompter.say("  taring the gauge (fibre slack)")
-    tare()
+    gauge.tare()
     levels = np.linspace(0, opts.max_duty, opts.levels + 1)[1:]
-    d, g, t, loading = [], [], [], []
+    d, loading = [], []
     for r in range(opts.rounds):
         for load, seq in ((True, levels), (False, levels[::-1][1:])):
             for duty in seq:
@@ -96,23 +125,18 @@ def force_points(session, rig, prompter, opts, side="high"):
                 acquire.collect(client, opts.settle_s)  # let it come to rest against the fibre
                 rec = acquire.collect(client, 0.3)
                 d.append(acquire.mean(rec, "defl_um") / 1000.0)
-                g.append(_gauge(rig, client, 1, rec))
-                t.append(time.monotonic())
+                g = gauge.record(rec)
                 loading.append(load)
                 progress_line("  %s side, round %d/%d %s duty %+5d: d %+.3f mm, gauge %.2f N" % (
-                    side, r + 1, opts.rounds, "loading  " if load else "unloading", sign * duty, d[-1], g[-1]))
-        client.call("stop")
-        _move_slack(client, start)
-        tare()
+                    side, r + 1, opts.rounds, "loading  " if load else "unloading", sign * duty, d[-1], g))
+        gauge.tare(move=True)
     end_progress()
     client.call("stop")
     loading = np.array(loading)
-    # the gauge shows tension; the force's sign is the side's
-    f = sign * (np.array(g) - np.interp(t, tare_t, tares))
     # Loading against the high-side gauge makes the force fall (more negative): the block slides
     # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
-    s = np.where(loading, 1.0, -1.0) * (1.0 if side == "high" else -1.0)
-    return np.array(d), f, s, loading, tares
+    s = np.where(loading, 1.0, -1.0) * -SIDES[side]
+    return np.array(d), gauge.forces(), s, loading, gauge.tares
 
 
 @dataclass
@@ -196,7 +220,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     doc = read_calibration(calibration_path) if calibration_path.exists() else {}
     if not doc.get("df"):
         raise UserError("the force step needs the assembly (Df) calibration first: host calibrate assembly")
-    sides = ("high", "low") if opts.gauge_sides == "both" else (opts.gauge_sides,)
+    sides = gauge_sides(opts.gauge_sides)
     prompter.say("[force] %d loading/unloading rounds against the force gauge, gauge on the %s side%s" % (
         opts.rounds, " then the ".join("60 mm" if x == "high" else "0 mm" for x in sides), "s" if len(sides) > 1 else ""))
     parts = [force_points(session, rig, prompter, opts, side) for side in sides]
@@ -234,7 +258,8 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     }
     png = opts.out_dir / "calibration-force.png"
     plot_force(png, d, f, s, fit)
-    data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d,
+    data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "order": fit.order_f,
+            "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d,
             "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,
             "sides": sides}
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)

@@ -62,7 +62,7 @@ class Rig:
 
     def hook_gauge(self, anchor_mm, side="high"):
         """side "high": the gauge sits toward 60 mm and the block pulls it toward 0 mm (negative
-        actuator forces, the paper's rig); "low": toward 0 mm, the block pushes away from it."""
+        actuator forces, the paper's rig); "low": toward 0 mm, the block pulls it toward 60 mm."""
         where = ("on the 60 mm side (the block pulls it toward 0 mm)" if side == "high"
                  else "on the 0 mm side (the block pulls it toward 60 mm)")
         change = {"load": {"kind": "gauge", "anchor_mm": float(anchor_mm), "side": side}}
