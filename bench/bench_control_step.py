@@ -83,7 +83,7 @@ class FloatStep:
         force = self.horner(c["force"], defl)
         h = c["friction"]
         if h:
-            self.ff = force if self.ff is None else self.ff + (force - self.ff) / 32.0
+            self.ff = force if self.ff is None else self.ff + (force - self.ff) / 64.0
             if self.ff > self.out + h:
                 self.out = self.ff - h
             elif self.ff < self.out - h:

@@ -175,6 +175,7 @@ class App:
         elif mode == FORCE:
             c.set_force_target(0)
             c.fdir = 0
+            c.defl_sp = c.meas.defl  # the ramp starts from the deformation the spring has now
         else:
             c.target = 0
         c.mode = mode

@@ -38,6 +38,7 @@ P_RAIL_MARGIN = const(9)
 P_STROKE_MIN = const(10)
 P_STROKE_MAX = const(11)
 P_SLOW_ZONE = const(12)
+P_DEFL_RATE = const(13)
 PARAMS = (
     ("kp_pos", 768, 0, GAIN_MAX),  # Q8 duty per um of position error
     ("ki_pos", 16, 0, GAIN_MAX),  # Q8 duty per um per step, into the Q8 integral
@@ -52,6 +53,7 @@ PARAMS = (
     ("stroke_min_um", 500, -65535, 65535),  # soft stroke limits on D1* and D2
     ("stroke_max_um", 59500, -65535, 65535),
     ("slow_zone_um", 5000, 1, 65535),  # |duty| toward a limit is capped, falling to 0 over this
+    ("defl_rate_um", 2, 0, 65535),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
 )
 _T_MASK = const(0x3FFFFFFF)
 
@@ -73,6 +75,7 @@ class Controller:
         self.force_set = array("i", [0, 0, 0, 0])
         self._spare_set = array("i", [0, 0, 0, 0])
         self.fdir = 0  # force mode: which side of the friction band the spring must work from
+        self.defl_sp = 0  # force mode: the deformation setpoint, um, ramping toward its target
         self.duty = 0
         self.t_us = 0
         self.steps = 0
@@ -138,9 +141,12 @@ class Controller:
                     self.fdir = -1
                 else:
                     self.fdir = 0
-                cmd = self.pi.update(
-                    fs[self.fdir + 1] - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]
-                )
+                # The setpoint ramps (defl_rate_um per step, ~25 N/s by default) so that the block
+                # slides quasi-statically: the friction model holds for a block that comes to
+                # rest under a slowly changing force, not for one that hits its load at speed.
+                sp = slew(self.defl_sp, fs[self.fdir + 1], p[P_DEFL_RATE])
+                self.defl_sp = sp
+                cmd = self.pi.update(sp - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT])
             if m is not None:
                 cmd = self._stroke_limit(cmd, m.d1, m.d2)
             duty = slew(self.duty, cmd, p[P_SLEW])

@@ -10,7 +10,9 @@ one (h, the output block's Coulomb friction, mN), the block sits between the spr
 and its friction is a play (backlash) operator in force: while the block sticks, the load's force
 stays put as the spring force changes by up to +-h; once the spring force leaves that band the
 block slides and the load follows it at a distance h. So F = play_h(F0(d)), on F0(d) low-passed
-over ~32 steps so that the pots' noise does not walk the band. `dir` records which edge moved
+over ~64 steps: a play operator follows the extremes of its input, so the pots' noise (~0.2 N of
+F0 per step) would walk the band; filtered over 32 steps it still biased the estimate by up to
+0.1 N, over 64 steps by a third of that, and over 128 the lag costs more than it gains. `dir` records which edge moved
 last (+1: the spring force fell, the block slid toward 0 mm; -1: toward 60 mm). A force target
 becomes one deformation target per edge (`deformation_targets`, F0 = target - h * s): the
 controller drives the spring to the edge from which the load's force moves toward the target.
@@ -109,7 +111,7 @@ class Measurement:
             self.fs32 = x
             self.out32 = x
             self.primed = True
-        f = self.fs32 + ((x - self.fs32) >> 5)
+        f = self.fs32 + ((x - self.fs32) >> 6)
         self.fs32 = f
         h = self.fric << 5
         if f > self.out32 + h:

@@ -172,9 +172,14 @@ def case_force_points_sim(path, side, levels, anchor=45000):
     app.set_mode("open_loop")
     rows = []
     seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
+    previous = 0
     for duty, loading in seq:
-        app.set_target(sign * duty)
-        app.heartbeat()
+        j = 1
+        while j <= 10:  # ramped over 0.3 s, as host/guided/force_calibration.py does
+            app.set_target(sign * (previous + (duty - previous) * j // 10))
+            _run(app, 30)
+            j += 1
+        previous = duty
         k = 0
         defl = 0
         while k < 800:
@@ -188,8 +193,9 @@ def case_force_points_sim(path, side, levels, anchor=45000):
     return rows
 
 
-def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500):
-    """Force steps against a gauge on `side` from a slack fibre: [target, estimate, load] mN each."""
+def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500):
+    """Force steps against a gauge on `side`, the fibre just slack, then taken up by a `preload` mN
+    hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each."""
     from firmware.app import App
 
     import boards.sim.machine as sim
@@ -205,6 +211,9 @@ def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, h
     _run(app, 1500)
     world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
     app.set_mode("force")
+    if preload:
+        app.set_target(sign * preload)
+        _run(app, 500)
     rows = []
     for t in targets:
         app.set_target(t)
