@@ -74,7 +74,7 @@ def _results(after_error_mm, df_binned_mm, force_pct):
         "dead_zone": {"rows": [{"target": -0.2, "measured": -0.1, "estimate": -0.2}], "dead_zone_n": 0.2},
         "table1": table1,
         "timings": {"calibration": 100.0, "total": 250.0},
-        "stroke_mm": [0.5, 59.5], "sim_block_friction_n": 0.3,
+        "stroke_mm": [0.5, 59.5], "sim_block_friction_n": 0.3, "preload_n": 0.5,
     }
 
 
@@ -94,6 +94,7 @@ def test_report_renders_every_section_and_judges_each_target(tmp_path):
     assert "worst of all 10 steps (both signs, loading and unloading) 1.0 %" in text and "<= 2 %: met" in text
     assert "0.30 N in the simulated actuator's file, 6 % of 5 N" in text and "(0.5 and 59.5 mm)" in text
     assert "Df order: auto -> 7. Force: order auto -> 4" in text and "2 force identification rounds" in text
+    assert "a 0.5 N preload took up the fibre's slack" in text
     assert "| 30 | 28.000 | 2.000 | 29.950 | 0.050 |" in text and "0.050 (not settled)" in text  # 59 mm unsettled
     worse = report.write(tmp_path, _results(0.5, 0.05, 3.0), opts).read_text()
     assert "<= 0.1 mm: **NOT met**" in worse and "<= 2 %: **NOT met**" in worse

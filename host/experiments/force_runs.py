@@ -6,7 +6,8 @@
 - dead zone: with the gauge hooked (fibre just slack at the anchor), force targets 0..-5 N in
   0.2 N steps; the dead zone is the largest |target| whose measured |force| is below half of it.
 Each sequence tares the gauge with the fibre slack before and after, and takes every reading
-against the tare interpolated to its time (the gauge's zero drifts).
+against the tare interpolated to its time (the gauge's zero drifts). The steps start after a
+0.5 N preload has taken up the fibre's slack.
 - steps (Table 1): targets -5, -10, -15 N and back through -10, -5 N (loading, then unloading)
   with the gauge on the 60 mm side as in the paper, and +5, +10, +15, +10, +5 N with the gauge on
   the 0 mm side; steady-state error (gauge vs target) and estimation error (firmware's force
@@ -46,14 +47,22 @@ def _hold(client, gauge, target_n, settle_s, measure_s):
     return acquire.mean(rec, "force_mN") / 1000.0
 
 
-def _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, measure_s, label):
+PRELOAD_N = 0.5
+
+
+def _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, measure_s, label, preload=False):
     """Force targets in turn against the gauge on `side`, hooked with the fibre just slack (0.2 mm)
-    and tared before and after (the zero drifts): (targets, gauge forces, firmware estimates)."""
+    and tared before and after (the zero drifts): (targets, gauge forces, firmware estimates).
+    With `preload`, a PRELOAD_N hold first takes up the fibre's slack, as on a bench before a
+    measurement: the first step then starts from a taut fibre, not from a block that hits it."""
     client = session.client
     gauge = GaugeOnSide(session, rig, prompter, anchor_mm, side, gap_mm=0.2)
     gauge.tare()
     acquire.reset(client)
     client.call("mode", "force")
+    if preload:
+        client.call("target", int(SIDES[side] * PRELOAD_N * 1000))
+        acquire.collect(client, 0.5)
     estimates = []
     for target in targets:
         estimates.append(_hold(client, gauge, target, settle_s, measure_s))
@@ -76,7 +85,7 @@ def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS
     """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it)."""
     targets = [SIDES[side] * m for m in magnitudes]
     _, measured, estimates = _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
-                                       "%s-side steps" % side)
+                                       "%s-side steps" % side, preload=True)
     rows = []
     peak = 0.0
     for magnitude, target, m, e in zip(magnitudes, targets, measured, estimates):

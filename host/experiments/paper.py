@@ -69,6 +69,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     results = {"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port}
     block = (session.board.get("actuator") or {}).get("block") or {}
     results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
+    results["preload_n"] = force_runs.PRELOAD_N
     results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]
     from host.commands.fit import DEFAULT_ORDER
 

@@ -216,14 +216,18 @@ def write(out_dir, r, opts, command=None):
             paper.get(x["target"], "-") if first else "-"))
     add("")
     add("Steady-state error = (gauge - target) / |target|; estimation error = (firmware estimate - gauge) / |gauge|. "
-        "The gauge was tared with the fibre slack just before each sequence. The block slides on its slider between "
+        "The gauge was tared with the fibre slack before and after each sequence (readings against the tare "
+        "interpolated in time: its zero drifts), and a %.1f N preload took up the fibre's slack before the first "
+        "step. The block slides on its slider between "
         "the spring and the fibre: its Coulomb friction%s makes the "
         "gauge read the spring force minus the friction in the direction the block last slid. %s" % (
+            r.get("preload_n", 0.0),
             " (%s N in the simulated actuator's file, %.0f %% of 5 N)" % (_f(r["sim_block_friction_n"], 2), 20 * r["sim_block_friction_n"])
             if r.get("sim_block_friction_n") is not None else "",
             "The force calibration identified it (%s N) and the firmware compensates it: its estimate is the spring "
-            "force through a play operator of that width, and the loop drives the spring to the edge of the band "
-            "from which the load's force reaches the target (firmware/measurement.py)." % _f(r["force_fit"].get("friction_n"))
+            "force through a play operator of that width, and the loop ramps the spring to the edge of the band "
+            "from which the load's force reaches the target, then parks it in the band's middle "
+            "(firmware/measurement.py, firmware/controller.py)." % _f(r["force_fit"].get("friction_n"))
             if m.get("friction") else "This run did not model it (--no-friction), so it shows in both errors."))
     add("")
     path = out_dir / "report.md"
