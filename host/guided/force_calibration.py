@@ -13,7 +13,7 @@ Why a friction term: the block slides on its slider between the spring and the f
 gauge reads the spring force minus the block's Coulomb friction h in the direction the block
 slid: F_gauge = F0(d) + h * s, with s = +1 after the force fell (the block slid toward 0 mm) and
 -1 after it rose. Fitted without it, loading and unloading disagree by ~2h and the fit carries
-+-h of error (rms 0.22 N on the simulated actuator against 0.03 N with it: docs/paper-experiments.md). F0 and h are fitted
++-h of error (rms 0.28 N on the simulated actuator against 0.04 N with it: docs/paper-experiments.md). F0 and h are fitted
 together by linear least squares (h is one more column); d(F0) is fitted to the spring force
 F_gauge - h * s. The firmware turns h into a play operator on F0(d) (firmware/measurement.py).
 Orders: `auto` (the default) picks the lowest within 5 % of the best 5-fold cross-validated
