@@ -178,27 +178,16 @@ def _prepare(path):
     """CPython: record ADC codes from the sim and make bcm3 and pwl calibrations from it."""
     import json
 
-    import numpy as np
-
     import fake_hardware
     from boards.sim.actuator import Actuator
     from host.fixed_export import export_bcm3
-    from host.models import fit_model
 
     board = fake_hardware.sim_board()
     cal_pwl = fake_hardware.model_calibration(board)
     world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 3)
-    xs = np.linspace(0.0, 60.0, 601)
     cal_bcm = dict(cal_pwl)
     fl = {"bcm3": {}, "pwl": {}}
-    for i, name in enumerate(("pot1", "pot2")):
-        codes, travel = [], []
-        for x in xs:
-            world.place(x)
-            codes.append(world.adc_code(name))
-            travel.append(x + world.pots[i].mount_error_mm(x))
-        order = np.argsort(codes, kind="stable")
-        fit = fit_model("bcm", np.asarray(codes, float)[order], np.asarray(travel)[order], 3)
+    for name, fit in fake_hardware.bcm3_pot_fits(board, noisy=True, seed=3).items():
         c = fit.coefficients
         cal_bcm[name] = ["bcm3", list(export_bcm3(c, board["adc_bits"], max_error_um=1e9))]
         fl["bcm3"][name] = ["bcm", c["lx"], c["rx"], list(c["weights"]), list(c["handles"])]

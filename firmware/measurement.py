@@ -73,7 +73,7 @@ class Measurement:
         self.d2 = 0
         self.defl = 0
         self.force = 0
-        self.dir = 0  # +1: the block last slid toward 0 mm; -1: toward 60 mm; 0: not yet
+        self.dir = 0  # which band edge moved last (+1: toward 0 mm, -1: toward 60 mm); diagnostic
         self.fs32 = 0  # spring force F0(d) low-passed, mN * 32
         self.out32 = 0  # the play operator's output (the load's force), mN * 32
         self.primed = False

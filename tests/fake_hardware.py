@@ -168,6 +168,29 @@ def model_calibration(board=None, n_points=61):
     return cal
 
 
+def bcm3_pot_fits(board, noisy=False, seed=1):
+    """{pot: FitResult}: each pot's code against its own wiper travel over the stroke (601
+    places), fitted by the paper's rational cubic Bezier (host.models). `noisy` takes one noisy
+    ADC read per place (seeded) instead of the noise-free code."""
+    import numpy as np
+
+    from boards.sim.actuator import Actuator
+    from host.models import fit_model
+
+    world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), seed)
+    xs = np.linspace(0.0, 60.0, 601)
+    fits = {}
+    for i, name in enumerate(("pot1", "pot2")):
+        codes, travel = [], []
+        for x in xs:
+            world.place(x)
+            codes.append(world.adc_code(name) if noisy else world.true_code(name))
+            travel.append(x + world.pots[i].mount_error_mm(x))
+        order = np.argsort(codes, kind="stable")
+        fits[name] = fit_model("bcm", np.asarray(codes, float)[order], np.asarray(travel)[order], 3)
+    return fits
+
+
 def record_codes(board, steps, duty=3000, seed=7):
     """ADC read_u16 values of every ADC pin, recorded from the simulated actuator while the
     motor runs at `duty` (of 10000) for `steps` control periods from mid-stroke, for replay."""

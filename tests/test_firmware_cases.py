@@ -29,23 +29,10 @@ def bcm3_calibration(board):
     """The model calibration with both pots as bcm3 (the paper's rational cubic Bezier, fitted by
     host.models and exported by host.fixed_export.export_bcm3), as bench/bench_control_step.py
     makes it: each pot's noise-free code against its own wiper travel over the stroke."""
-    import numpy as np
-
-    from boards.sim.actuator import Actuator
     from host.fixed_export import export_bcm3
-    from host.models import fit_model
 
     cal = fake_hardware.model_calibration(board)
-    world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 1)
-    xs = np.linspace(0.0, 60.0, 601)
-    for i, name in enumerate(("pot1", "pot2")):
-        codes, travel = [], []
-        for x in xs:
-            world.place(x)
-            codes.append(world.true_code(name))
-            travel.append(x + world.pots[i].mount_error_mm(x))
-        order = np.argsort(codes, kind="stable")
-        fit = fit_model("bcm", np.asarray(codes, float)[order], np.asarray(travel)[order], 3)
+    for name, fit in fake_hardware.bcm3_pot_fits(board).items():
         k = export_bcm3(fit.coefficients, board["adc_bits"])
         assert k.max_error <= k.bound
         cal[name] = ["bcm3", list(k)]
