@@ -6,6 +6,7 @@ can run under CPython (in-process) and MicroPython (a subprocess via `run_microp
 
 import os
 import shutil
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -46,3 +47,13 @@ def run_micropython(source, *, extra_paths=(), timeout=120, check=True, args=())
             % (proc.returncode, proc.stdout, proc.stderr)
         )
     return proc
+
+
+def run_case(module, call, timeout=120):
+    """Evaluate `module.call` (e.g. "case_x(1, 2)") under the real MicroPython with tests/ on
+    its path; the case returns something JSON-able, printed last. Returns it, parsed."""
+    proc = run_micropython(
+        "import json, %s\nprint(json.dumps(%s.%s))\n" % (module, module, call),
+        extra_paths=[REPO / "tests"], timeout=timeout,
+    )
+    return json.loads(proc.stdout.strip().splitlines()[-1])

@@ -1,16 +1,14 @@
 """The shared firmware cases (tests/firmware_cases.py), each run under CPython and MicroPython."""
 
 import json
-import sys
 
 import pytest
 
-from micropython_runner import REPO, run_micropython
+from micropython_runner import REPO, run_case
 
 import fake_hardware
 import firmware_cases
 
-TESTS = REPO / "tests"
 
 
 @pytest.fixture(scope="module")
@@ -52,11 +50,7 @@ def bcm3_data_path(data_path, tmp_path_factory):
 
 def on_micropython(call):
     """Run `firmware_cases.<call>` under the real MicroPython; return its result dict."""
-    proc = run_micropython(
-        "import json, firmware_cases\nprint(json.dumps(firmware_cases.%s))\n" % call,
-        extra_paths=[TESTS],
-    )
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return run_case("firmware_cases", call)
 
 
 def both(call, data_path=None):

@@ -7,7 +7,7 @@ import pytest
 
 import fake_hardware
 import firmware_loop_cases
-from micropython_runner import REPO, run_micropython
+from micropython_runner import run_case
 
 
 @pytest.fixture(scope="module")
@@ -21,11 +21,7 @@ def data_path(tmp_path_factory):
 
 
 def on_micropython(call):
-    proc = run_micropython(
-        "import json, firmware_loop_cases\nprint(json.dumps(firmware_loop_cases.%s))\n" % call,
-        extra_paths=[REPO / "tests"],
-    )
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return run_case("firmware_loop_cases", call)
 
 
 def both(call):

@@ -1,21 +1,16 @@
 """Sampling with known ADC sequences (tests/firmware_sampler_cases.py), on CPython and MicroPython:
 oversample mean with rounding, the shift to the board's bits, the reference channel."""
 
-import json
 
 import pytest
 
 import firmware_sampler_cases
-from micropython_runner import REPO, run_micropython
+from micropython_runner import run_case
 
 
 def both(call):
     here = eval("firmware_sampler_cases." + call)
-    proc = run_micropython(
-        "import json, firmware_sampler_cases\nprint(json.dumps(firmware_sampler_cases.%s))\n" % call,
-        extra_paths=[REPO / "tests"],
-    )
-    there = json.loads(proc.stdout.strip().splitlines()[-1])
+    there = run_case("firmware_sampler_cases", call)
     assert here == there
     return here
 

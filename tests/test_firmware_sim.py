@@ -8,7 +8,7 @@ import pytest
 import fake_hardware
 import test_firmware_sim_cases as sim_cases
 from firmware.calibration import FORMAT, SCHEMA, payload_crc
-from micropython_runner import REPO, run_micropython
+from micropython_runner import run_case
 
 TARGETS = [10000, 45000, 30000, 5000, 55000]
 
@@ -19,11 +19,7 @@ def cal_data(tmp_path_factory):
 
 
 def on_micropython(call):
-    proc = run_micropython(
-        "import json, test_firmware_sim_cases as sim_cases\nprint(json.dumps(sim_cases.%s))\n" % call,
-        extra_paths=[REPO / "tests"],
-    )
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return run_case("test_firmware_sim_cases", call)
 
 
 def test_position_mode_reaches_targets_on_sim(tmp_path, cal_data):

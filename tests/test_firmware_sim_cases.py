@@ -102,20 +102,11 @@ def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
     out = {"est_err_mN": 0, "true_err_mN": 0}
     for target in targets:
         app.set_target(target)
-        k = 0
-        est = 0
-        true = 0.0
-        while k < settle_ticks + hold_ticks:
-            sim.run_ticks(1)
-            app.heartbeat()
-            if k >= settle_ticks:
-                est += app.ctrl.meas.force
-                true += world.spring_force_n * 1000.0
-            k += 1
-        e = abs(est // hold_ticks - target)
+        est, true = _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=True)
+        e = abs(est - target)
         if e > out["est_err_mN"]:
             out["est_err_mN"] = e
-        e = abs(int(true / hold_ticks) - target)
+        e = abs(true - target)
         if e > out["true_err_mN"]:
             out["true_err_mN"] = e
     st = app.status()
@@ -135,21 +126,22 @@ def _run(app, ticks):
         k += 1
 
 
-def _settle_then_mean(app, world, settle_ticks, hold_ticks):
-    """Run, then average the firmware's force estimate and the load's true force (mN)."""
+def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
+    """Run, then average the firmware's force estimate and the true force (mN): the load's
+    (the actuator's force is what the load resists), or with `spring` the spring's."""
     import boards.sim.machine as sim
 
     k = 0
     est = 0
-    load = 0.0
+    true = 0.0
     while k < settle_ticks + hold_ticks:
         sim.run_ticks(1)
         app.heartbeat()
         if k >= settle_ticks:
             est += app.ctrl.meas.force
-            load -= world.external_force_n * 1000.0  # the actuator's force is what the load resists
+            true += world.spring_force_n * 1000.0 if spring else -world.external_force_n * 1000.0
         k += 1
-    return est // hold_ticks, int(load / hold_ticks)
+    return est // hold_ticks, int(true / hold_ticks)
 
 
 def case_force_points_sim(path, side, levels, anchor=45000):

@@ -13,7 +13,7 @@ import firmware_chain_cases
 from firmware.calibration import FORMAT, SCHEMA, convert, load_calibration, payload_crc
 from firmware.measurement import STROKE_CLAMP_UM
 from firmware.poly_fixed import poly
-from micropython_runner import REPO, run_micropython
+from micropython_runner import run_case
 from test_firmware_cases import bcm3_calibration
 
 BITS = 12
@@ -42,11 +42,7 @@ def cal_path(request, tmp_path_factory):
 
 
 def on_micropython(call):
-    proc = run_micropython(
-        "import json, firmware_chain_cases\nprint(json.dumps(firmware_chain_cases.%s))\n" % call,
-        extra_paths=[REPO / "tests"], timeout=300,
-    )
-    return json.loads(proc.stdout.strip().splitlines()[-1])
+    return run_case("firmware_chain_cases", call, timeout=300)
 
 
 def clamp(x):
