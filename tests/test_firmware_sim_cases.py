@@ -144,23 +144,29 @@ def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
     return est // hold_ticks, int(true / hold_ticks)
 
 
-def case_force_points_sim(path, side, levels, anchor=45000):
-    """Force identification as the guided step does it, on the simulated actuator: open-loop duty
-    steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
+def _hooked_on_side(path, side, anchor, gap_um):
+    """A started app with the file's calibration, the block moved `gap_um` to the slack side of
+    the anchor, the gauge hooked on `side`: (app, world, sign of the forces against it)."""
     from firmware.app import App
 
     import boards.sim.machine as sim
 
-    data = load(path)
     app = App("boards/sim.json", None)
-    app.set_calibration(Cal(data["cal"]))
+    app.set_calibration(Cal(load(path)["cal"]))
     app.start()
     world = sim.world()
     sign = -1 if side == "high" else 1
     app.set_mode("position")
-    app.set_target(anchor - sign * 1500)  # slack side of the anchor
+    app.set_target(anchor - sign * gap_um)
     _run(app, 1500)
     world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
+    return app, world, sign
+
+
+def case_force_points_sim(path, side, levels, anchor=45000):
+    """Force identification as the guided step does it, on the simulated actuator: open-loop duty
+    steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
+    app, world, sign = _hooked_on_side(path, side, anchor, 1500)
     app.set_mode("open_loop")
     rows = []
     seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
@@ -172,13 +178,12 @@ def case_force_points_sim(path, side, levels, anchor=45000):
             _run(app, 30)
             j += 1
         previous = duty
+        _run(app, 500)  # come to rest against the fibre
         k = 0
         defl = 0
-        while k < 800:
-            sim.run_ticks(1)
-            app.heartbeat()
-            if k >= 500:
-                defl += app.ctrl.meas.defl
+        while k < 300:
+            _run(app, 1)
+            defl += app.ctrl.meas.defl
             k += 1
         rows.append([defl // 300, int(-world.external_force_n * 1000.0), loading])
     app.shutdown()
@@ -188,20 +193,7 @@ def case_force_points_sim(path, side, levels, anchor=45000):
 def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500):
     """Force steps against a gauge on `side`, the fibre just slack, then taken up by a `preload` mN
     hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each."""
-    from firmware.app import App
-
-    import boards.sim.machine as sim
-
-    data = load(path)
-    app = App("boards/sim.json", None)
-    app.set_calibration(Cal(data["cal"]))
-    app.start()
-    world = sim.world()
-    sign = -1 if side == "high" else 1
-    app.set_mode("position")
-    app.set_target(anchor - sign * 200)
-    _run(app, 1500)
-    world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
+    app, world, sign = _hooked_on_side(path, side, anchor, 200)
     app.set_mode("force")
     if preload:
         app.set_target(sign * preload)
