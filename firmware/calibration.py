@@ -28,6 +28,7 @@ import binascii
 
 from firmware.bcm_fixed import invalid as bcm3_invalid
 from firmware.bcm_fixed import bcm3
+from firmware.poly_fixed import invalid as poly_invalid
 from firmware.pwl_fixed import pwl
 
 FORMAT = "lsea-kit calibration"
@@ -37,6 +38,7 @@ POLY_SECTIONS = ("df", "force", "force_inverse")
 FRICTION_SECTION = "friction"
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
 LIMIT = 1 << 30
+PWL_VALUE_LIMIT = 1 << 29  # pwl_fixed sign-fixes knot values within [-2**29, 2**29)
 
 
 class CalibrationError(Exception):
@@ -106,16 +108,12 @@ def check_pwl(k, name="pwl"):
         _check(dx * abs(y[i] - y[i - 1]) <= LIMIT - (1 << 15), name, "segment too long for 31 bits")
         i += 1
     _check(x[0] >= 0 and x[n - 1] <= 1 << 16, name, "knot codes outside the ADC range")
+    _check(-PWL_VALUE_LIMIT <= min(y) and max(y) < PWL_VALUE_LIMIT, name, "knot values beyond 2**29 um")
 
 
 def check_poly(k, name="poly"):
-    n = k[0]
-    _check(n >= 0 and len(k) == 6 + 2 * n, name, "polynomial length does not match its degree")
-    _check(k[2] <= k[3] and 0 <= k[4] <= 30, name, "bad input range or output shift")
-    i = 6
-    while i < len(k):
-        _check(8 <= k[i] <= 30, name, "bad Horner shift")
-        i += 2
+    why = poly_invalid(k)  # the layout's limits live with the evaluator
+    _check(why is None, name, why)
 
 
 def pot_constants(section, name):

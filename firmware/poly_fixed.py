@@ -5,7 +5,8 @@ model F0(d) (um -> mN) and its inverse d(F0) (mN -> um). The input is clamped to
 range and centred (u = x - XC) so that |u| is as small as the range allows. Each Horner
 accumulator r_j = a_j + u * r_(j+1) is held as R_j = round(r_j * 2**E_j) with its own exponent
 E_j, chosen by the host so that |R_j| <= 2**29 and |R_(j+1) * u| <= 2**29 over the whole input
-range (host/fixed_export.py proves it from the coefficients and checks it by instrumentation).
+range (host/fixed_export.py proves it from the coefficients and checks it by instrumentation);
+every A_j, XC, XLO and XHI is within [-2**29, 2**29).
 The product R_(j+1) * u is taken in halves, u = uh * 2**8 + ul with 0 <= ul < 256, and
 recombined with nested floors, exactly floor((R u + 2**(SH-1)) / 2**SH) for SH >= 8, so R only
 has to satisfy |R| * max(256, |uh|) <= 2**29: about 21 bits for a 60 mm range in um, where a
@@ -25,31 +26,58 @@ k layout (a flat int sequence, array('i') on the board):
 Rounding is floor(v + 1/2) via >> (floor on both interpreters, also for negative v).
 """
 
+from firmware.portable import const, ptr32
+
 try:
-    import micropython  # @micropython.native is resolved by MicroPython's compiler, not at run time
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler, not at run time
 except ImportError:  # CPython: the same decorator must still be valid, as an identity
     from firmware import portable as micropython
 
+_B29 = const(536870912)  # sign fix of a word that may be negative (see firmware/bcm_fixed.py)
+_M30 = const(1073741823)
 
-# native code: 2-3x faster under MicroPython and bit-identical (the same int objects and
-# operators); only the literal @micropython.native selects the emitter (firmware.portable's
-# `native` is an identity on MicroPython too, as the micropython module has no such attribute)
-@micropython.native
-def poly(x, k):
-    """The exported polynomial `k` (layout above) at integer input `x`, as an integer."""
-    if x < k[2]:
-        x = k[2]
-    elif x > k[3]:
-        x = k[3]
-    u = x - k[1]
+
+# viper: machine-word integers (bcm_fixed.py says why this is bit-identical on every port).
+# XC, XLO, XHI and every A_j may be negative and go through the sign fix (all < 2**29 in size).
+@micropython.viper
+def poly(x: int, kk) -> int:
+    """The exported polynomial `kk` (layout above) at integer input `x`, as an integer."""
+    k = ptr32(kk)
+    lo = ((k[2] + _B29) & _M30) - _B29
+    hi = ((k[3] + _B29) & _M30) - _B29
+    if x < lo:
+        x = lo
+    elif x > hi:
+        x = hi
+    u = x - (((k[1] + _B29) & _M30) - _B29)
     uh = u >> 8
     ul = u & 255
-    r = k[5]
+    r = ((k[5] + _B29) & _M30) - _B29
     i = 6
     end = 6 + (k[0] << 1)
     while i < end:
         sh = k[i]
-        r = k[i + 1] + ((r * uh + ((r * ul + ((1 << sh) >> 1)) >> 8)) >> (sh - 8))
+        a = ((k[i + 1] + _B29) & _M30) - _B29
+        r = a + ((r * uh + ((r * ul + ((1 << sh) >> 1)) >> 8)) >> (sh - 8))
         i += 2
     e = k[4]
     return (r + ((1 << e) >> 1)) >> e
+
+
+def invalid(k):
+    """Why `k` cannot be a poly constant set (a string), or None: the layout's limits, among them
+    every word the evaluator sign-fixes within [-2**29, 2**29). The calibration loader uses it."""
+    n = k[0]
+    if not (0 <= n <= 30 and len(k) == 6 + 2 * n):
+        return "polynomial length does not match its degree"
+    if not (k[2] <= k[3] and 0 <= k[4] <= 30):
+        return "bad input range or output shift"
+    i = 6
+    while i < len(k):
+        if not 8 <= k[i] <= 30:
+            return "bad Horner shift"
+        i += 2
+    for i in [1, 2, 3, 5] + list(range(7, len(k), 2)):
+        if not -_B29 <= k[i] < _B29:
+            return "coefficient or range beyond 2**29"
+    return None

@@ -1,6 +1,6 @@
 """What lets one firmware source run under MicroPython and, for tests, under CPython.
 
-`const` comes from MicroPython where it exists. The code emitters are NOT run-time functions:
+`const` comes from MicroPython where it exists; `ptr32` stands in for viper's cast under CPython. The code emitters are NOT run-time functions:
 MicroPython's compiler selects them only for the literal decorators `@micropython.native` and
 `@micropython.viper`. A module that wants one therefore writes
 
@@ -21,6 +21,16 @@ except ImportError:  # CPython
 
     def const(value):
         return value
+
+
+def ptr32(buf):
+    """CPython stand-in for viper's ptr32 cast: the buffer's memory as signed 32-bit words.
+
+    Under MicroPython viper resolves `ptr32` itself (this function is never called there). A
+    list (the host's exported constants, possibly of tracked ints) is used as it is."""
+    if isinstance(buf, list):
+        return buf
+    return memoryview(buf).cast("B").cast("i")
 
 
 def native(func):

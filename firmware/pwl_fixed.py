@@ -18,25 +18,30 @@ Rounding is floor(v + 1/2) via // (floor on both interpreters, also for negative
 at a knot is exactly the stored knot value, so a monotone table stays monotone.
 """
 
+from firmware.portable import const, ptr32
+
 try:
-    import micropython  # @micropython.native is resolved by MicroPython's compiler, not at run time
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler, not at run time
 except ImportError:  # CPython: the same decorator must still be valid, as an identity
     from firmware import portable as micropython
 
+_B29 = const(536870912)  # sign fix of a knot value (see firmware/bcm_fixed.py)
+_M30 = const(1073741823)
 
-# native code: 2-3x faster under MicroPython and bit-identical (the same int objects and
-# operators); only the literal @micropython.native selects the emitter (firmware.portable's
-# `native` is an identity on MicroPython too, as the micropython module has no such attribute)
-@micropython.native
-def pwl(code, k):
-    """Position in um of ADC `code` for the exported table `k` (layout above)."""
+
+# viper: machine-word integers (bcm_fixed.py says why this is bit-identical on every port).
+# Knot codes are never negative; knot values may be, and go through the sign fix.
+@micropython.viper
+def pwl(code: int, kk) -> int:
+    """Position in um of ADC `code` for the exported table `kk` (layout above)."""
+    k = ptr32(kk)
     n = k[0]
     x = code << k[1]
     last = n + 1  # index of the last knot code
     if x <= k[2]:
-        return k[2 + n]
+        return ((k[2 + n] + _B29) & _M30) - _B29
     if x >= k[last]:
-        return k[last + n]
+        return ((k[last + n] + _B29) & _M30) - _B29
     lo = 2
     hi = last
     # invariant: k[lo] <= x < k[hi]
@@ -48,5 +53,5 @@ def pwl(code, k):
             hi = mid
     x0 = k[lo]
     dx = k[hi] - x0
-    y0 = k[lo + n]
-    return y0 + ((x - x0) * (k[hi + n] - y0) + (dx >> 1)) // dx
+    y0 = ((k[lo + n] + _B29) & _M30) - _B29
+    return y0 + ((x - x0) * ((((k[hi + n] + _B29) & _M30) - _B29) - y0) + (dx >> 1)) // dx

@@ -169,10 +169,10 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
     if any(not -64 <= e <= 64 for _, e in ratios):
         raise ValueError("weight ratio %.3g too large for bcm3" % (max(w) / min(w)))
     h = 8  # finest handle unit 2**-h um whose spread and size still fit the layout
-    while h > 0 and (round((max(p) - min(p)) * 2**h) + 1 > 2**21 or max(abs(v) for v in p) * 2**h > 2**29):
+    while h > 0 and (round((max(p) - min(p)) * 2**h) + 1 > 2**21 or max(abs(v) for v in p) * 2**h >= 2**29):
         h -= 1
     handles = [round(v * 2**h) for v in p]
-    if max(handles) - min(handles) > 2**21 or max(abs(v) for v in handles) > 2**29:
+    if max(handles) - min(handles) > 2**21 or max(abs(v) for v in handles) >= 2**29:
         raise ValueError("handle spread %.0f um too large (limit 2**21 um)" % (max(p) - min(p)))
     k = [s, lx, rx, rx.bit_length() - 20, h, *handles, *(v for pair in ratios for v in pair)]
     why = bcm_fixed.invalid(k)
@@ -209,7 +209,7 @@ def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM,
     if X[0] < 0 or X[-1] > 2**16 or any(b <= a for a, b in zip(X, X[1:])):
         raise ValueError("knot codes must be distinct within 1/%d code and inside the ADC range" % 2**s)
     Y = [round(v) for v in ys]
-    if max(abs(v) for v in Y) > 2**29:
+    if max(abs(v) for v in Y) >= 2**29:
         raise ValueError("table values exceed 2**29 um")
     # split segments whose interpolation product could leave 31 bits
     outx, outy = [X[0]], [Y[0]]
@@ -296,7 +296,7 @@ def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=
         raise ValueError("polynomial coefficients must be a non-empty list of finite numbers")
     n = len(a) - 1
     xlo, xhi = math.ceil(x_min * in_scale), math.floor(x_max * in_scale)
-    if not xhi >= xlo or max(abs(xlo), abs(xhi)) > 2**29:
+    if not xhi >= xlo or max(abs(xlo), abs(xhi)) >= 2**29:
         raise ValueError("input range %r..%r is empty or beyond 2**29 units" % (x_min, x_max))
     xc = (xlo + xhi) // 2
     hw = max(xc - xlo, xhi - xc, 1)
@@ -323,7 +323,10 @@ def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=
         else:
             mj = sum(abs(q[i]) * float(hw) ** (i - j) for i in range(j, n + 1))
         mj *= max(256, (hw >> 8) + 1) if j >= 1 else 1
-        lim.append(200 if mj == 0 else min(200, math.floor(29 - math.log2(mj))))
+        lj = 200 if mj == 0 else min(200, math.floor(29 - math.log2(mj)))
+        if mj * 2.0**lj >= 2**29:  # keep |R_j| < 2**29 strictly (the firmware's sign fix)
+            lj -= 1
+        lim.append(lj)
     e = [0] * (n + 1)
     e[n] = lim[n]
     for j in range(n - 1, -1, -1):
