@@ -126,6 +126,9 @@ class App:
             "target": self.ctrl.target,
             "duty": self.ctrl.duty,
             "steps": self.ctrl.steps,
+            "step_us_max": self.ctrl.step_us_max,
+            "overruns": self.ctrl.overruns,
+            "period_us": self.ctrl.period_us,
             "timer": self.timer_kind,
             "last_exit": self.last_exit,
         }
@@ -232,6 +235,7 @@ class App:
     def start(self):
         """Start the control timer (run() does this)."""
         if self._timer is None:
+            self.ctrl.timer_started()
             self._timer, self.timer_kind = hal.start_loop(self.machine, self.board, self.step)
 
     def shutdown(self):

@@ -4,19 +4,25 @@ Called by a hard timer interrupt on a board, so it allocates nothing, uses integ
 never raises: an exception inside it stops the motor and is recorded as a fault. Parameters live
 in one preallocated array('i') (PARAMS gives names, defaults and the ranges that keep every
 intermediate within +-2**30); the main loop changes them through App.set_param.
+
+The step is viper code over int32 blocks (this one's `Controller.st`, and the sampler's,
+safety's, measurement's and PI's): machine-word arithmetic and single loads and stores, so that
+it fits a 1 kHz period on a Cortex-M0 with room to spare (bench/bench_mcu.py, docs/firmware.md).
+Every counter in it wraps or saturates inside 31 bits, so it runs for any uptime. It times
+itself: the longest step since boot and the overruns (a step that started at least half a period
+late, or ran for a whole period) are in status().
 """
 
 from array import array
 
-from firmware.pi_control import DUTY_MAX, GAIN_MAX, PI, slew
-from firmware.portable import const
-from firmware.safety import (
-    FAULT_HOST_TIMEOUT,
-    FAULT_RAIL_POT1,
-    FAULT_RAIL_POT2,
-    FAULT_STEP_EXCEPTION,
-)
-from firmware.sampler import NO_RAIL, RAIL_POT1
+from firmware.pi_control import DUTY_MAX, GAIN_MAX, PI
+from firmware.portable import const, ptr32, ticks_us, zeros
+from firmware.safety import FAULT_STEP_EXCEPTION
+
+try:
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler
+except ImportError:  # CPython
+    from firmware import portable as micropython
 
 IDLE = const(0)
 OPEN_LOOP = const(1)
@@ -55,7 +61,75 @@ PARAMS = (
     ("slow_zone_um", 5000, 1, 65535),  # |duty| toward a limit is capped, falling to 0 over this
     ("defl_rate_um", 2, 0, 65535),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
 )
-_T_MASK = const(0x3FFFFFFF)
+_MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
+
+# Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
+# unix port, so a word that may be negative is read as ((v + 2**29) & (2**30 - 1)) - 2**29, the
+# identity for every value in [-2**29, 2**29) wherever the load came from (all of ours are).
+_B29 = const(536870912)
+_M30 = const(1073741823)
+
+# What the step uses of the other modules, as compile-time constants: an imported name is a
+# run-time global, which viper code cannot use as a machine int. tests/test_firmware_step.py
+# checks every one against the module it copies.
+_DUTY_MAX = const(10000)  # pi_control.DUTY_MAX
+_S_RAW1 = const(0)  # sampler.RAW1 ...
+_S_RAW2 = const(1)
+_S_RAW_REF = const(2)
+_S_RAIL = const(3)
+_S_RAIL_VALUE = const(4)
+_NO_RAIL = const(0)  # sampler.NO_RAIL
+_RAIL_POT1 = const(1)  # sampler.RAIL_POT1
+_F_FAULTS = const(0)  # safety.FAULTS
+_FAULT_RAIL_POT1 = const(1)  # safety.FAULT_RAIL_POT1 ...
+_FAULT_RAIL_POT2 = const(2)
+_FAULT_HOST_TIMEOUT = const(4)
+_M_D1 = const(0)  # measurement.D1 ...
+_M_D2 = const(1)
+_M_DEFL = const(2)
+_M_FORCE = const(3)
+_M_FRIC = const(8)
+
+# Controller.st
+MODE = const(0)
+TARGET = const(1)  # duty (open_loop), um (position) or mN (force)
+DUTY = const(2)
+T_US = const(3)  # loop time: steps x period, mod 2**30
+STEPS = const(4)  # steps since boot, mod 2**30 (12.4 days at 1 kHz)
+FDIR = const(5)  # force mode: which side of the friction band the spring must work from
+DEFL_SP = const(6)  # force mode: the deformation setpoint, um, ramping toward its target
+PERIOD = const(7)  # us
+LAST_START = const(8)  # ticks_us (mod 2**30) at the start of the last step
+TIMED = const(9)  # 1 once LAST_START holds a step of this timer run
+STEP_US_MAX = const(10)  # the longest step since boot, us
+OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one or ran >= 1 period
+WORDS = const(12)
+
+# the step's record for the telemetry ring, in the order of telemetry.FIELDS
+_R_T = const(0)
+_R_RAW1 = const(1)
+_R_RAW2 = const(2)
+_R_REF = const(3)
+_R_D1 = const(4)
+_R_D2 = const(5)
+_R_DEFL = const(6)
+_R_FORCE = const(7)
+_R_TARGET = const(8)
+_R_DUTY = const(9)
+_R_MODE = const(10)
+_R_FAULTS = const(11)
+
+
+def _field(i):
+    """A property over word i of the controller's block."""
+
+    def get(self):
+        return self.st[i]
+
+    def put(self, v):
+        self.st[i] = v
+
+    return property(get, put)
 
 
 class Controller:
@@ -67,19 +141,27 @@ class Controller:
         self.safety = safety
         self.pi = PI()
         self.p = array("i", [d for _, d, _, _ in PARAMS])
-        self.period_us = 1000000 // loop_hz
-        self.mode = IDLE
-        self.target = 0  # duty (open_loop), um (position) or mN (force)
+        self.st = zeros(WORDS)
+        self.st[PERIOD] = 1000000 // loop_hz
+        self.rec = zeros(12)  # the step's telemetry record, handed to the ring
+        self._ticks = ticks_us
         # Force mode: [deformation um for friction edge -1, 0, +1, force target mN]. Written
         # whole into the spare and swapped in by one assignment, so the step never sees a mix.
-        self.force_set = array("i", [0, 0, 0, 0])
-        self._spare_set = array("i", [0, 0, 0, 0])
-        self.fdir = 0  # force mode: which side of the friction band the spring must work from
-        self.defl_sp = 0  # force mode: the deformation setpoint, um, ramping toward its target
-        self.duty = 0
-        self.t_us = 0
-        self.steps = 0
+        self.force_set = zeros(4)
+        self._spare_set = zeros(4)
         self.apply_params()
+
+    # --- the block's fields, for the main loop, people and tests -----------------------------
+    mode = _field(MODE)
+    target = _field(TARGET)
+    duty = _field(DUTY)
+    t_us = _field(T_US)
+    steps = _field(STEPS)
+    fdir = _field(FDIR)
+    defl_sp = _field(DEFL_SP)
+    period_us = _field(PERIOD)
+    step_us_max = _field(STEP_US_MAX)
+    overruns = _field(OVERRUNS)
 
     def apply_params(self):
         """Push the parameters that live in other objects (call after changing self.p)."""
@@ -87,13 +169,17 @@ class Controller:
         self.sampler.rail_reads = self.p[P_RAIL_READS]
         self.sampler.rail_margin = self.p[P_RAIL_MARGIN]
 
+    def timer_started(self):
+        """The loop timer (re)starts: the first step has no previous one to be late against."""
+        self.st[TIMED] = 0
+
     def step(self, _timer=None):
         """The timer callback. Never raises: a failure stops the motor and latches a fault."""
         try:
             self._step()
         except Exception as exc:  # a hard IRQ cannot propagate it, so record and stop
-            self.mode = IDLE
-            self.duty = 0
+            self.st[MODE] = IDLE
+            self.st[DUTY] = 0
             self.safety.exc = exc
             self.safety.trip(FAULT_STEP_EXCEPTION)
             try:
@@ -101,30 +187,55 @@ class Controller:
             except Exception:
                 pass
 
+    @micropython.viper
     def _step(self):
-        s = self.sampler
-        sf = self.safety
-        p = self.p
-        s.sample()
-        if s.rail != NO_RAIL and not (sf.faults & (FAULT_RAIL_POT1 | FAULT_RAIL_POT2)):
-            sf.rail_value = s.rail_value
-            sf.trip(FAULT_RAIL_POT1 if s.rail == RAIL_POT1 else FAULT_RAIL_POT2)
-        mode = self.mode
-        if mode != IDLE and sf.tick():
-            sf.trip(FAULT_HOST_TIMEOUT)
-        m = self.meas
-        if m is not None:
-            m.update(s.raw1, s.raw2)
-        if sf.faults:
-            mode = IDLE
-            self.mode = IDLE
-        if mode == IDLE:
-            duty = 0
+        c = ptr32(self.st)
+        t0 = int(self._ticks()) & _MASK
+        period = c[PERIOD]
+        if c[TIMED]:
+            gap = (t0 - c[LAST_START]) & _MASK
+            late = gap >= period + (period >> 1)
         else:
+            late = False
+            c[TIMED] = 1
+        c[LAST_START] = t0
+        p = ptr32(self.p)
+        sampler = self.sampler
+        sampler.sample()
+        s = ptr32(sampler.st)
+        sf = self.safety
+        f = ptr32(sf.st)
+        if s[_S_RAIL] != _NO_RAIL and not (f[_F_FAULTS] & (_FAULT_RAIL_POT1 | _FAULT_RAIL_POT2)):
+            sf.rail_value = s[_S_RAIL_VALUE]
+            sf.trip(_FAULT_RAIL_POT1 if s[_S_RAIL] == _RAIL_POT1 else _FAULT_RAIL_POT2)
+        mode = c[MODE]
+        if mode != IDLE and sf.tick():
+            sf.trip(_FAULT_HOST_TIMEOUT)
+        meas = self.meas
+        d1 = 0
+        d2 = 0
+        defl = 0
+        force = 0
+        fric = 0
+        if meas:
+            meas.update(s[_S_RAW1], s[_S_RAW2])
+            m = ptr32(meas.st)
+            d1 = ((m[_M_D1] + _B29) & _M30) - _B29
+            d2 = ((m[_M_D2] + _B29) & _M30) - _B29
+            defl = ((m[_M_DEFL] + _B29) & _M30) - _B29
+            force = ((m[_M_FORCE] + _B29) & _M30) - _B29
+            fric = m[_M_FRIC]
+        if f[_F_FAULTS]:
+            mode = IDLE
+            c[MODE] = IDLE
+        duty = 0
+        if mode != IDLE:
+            cmd = 0
+            pi = self.pi
             if mode == OPEN_LOOP:
-                cmd = self.target
+                cmd = ((c[TARGET] + _B29) & _M30) - _B29
             elif mode == POSITION:
-                cmd = self.pi.update(self.target - m.d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT])
+                cmd = int(pi.update((((c[TARGET] + _B29) & _M30) - _B29) - d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
             else:
                 # With the block's friction h calibrated, the load's force only moves once the
                 # spring force leaves a band 2h wide around it: to lower it the spring works from
@@ -132,38 +243,89 @@ class Controller:
                 # load-force estimate is within h/16 of the target the spring parks in the
                 # middle of the band (the target itself), h away from both edges, so that noise
                 # can no longer slide the block and the choice cannot chatter.
-                fs = self.force_set
-                e = fs[3] - m.force
-                tol = m.fric >> 4
+                fs = ptr32(self.force_set)
+                e = (((fs[3] + _B29) & _M30) - _B29) - force
+                tol = fric >> 4
+                fdir = 0
                 if e < -tol:
-                    self.fdir = 1
+                    fdir = 1
                 elif e > tol:
-                    self.fdir = -1
-                else:
-                    self.fdir = 0
+                    fdir = -1
+                c[FDIR] = fdir
                 # The setpoint ramps (defl_rate_um per step, ~25 N/s by default) so that the block
                 # slides quasi-statically: the friction model holds for a block that comes to
                 # rest under a slowly changing force, not for one that hits its load at speed.
-                sp = slew(self.defl_sp, fs[self.fdir + 1], p[P_DEFL_RATE])
-                self.defl_sp = sp
-                cmd = self.pi.update(sp - m.defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT])
-            if m is not None:
-                cmd = self._stroke_limit(cmd, m.d1, m.d2)
-            duty = slew(self.duty, cmd, p[P_SLEW])
+                sp = ((c[DEFL_SP] + _B29) & _M30) - _B29
+                goal = ((fs[fdir + 1] + _B29) & _M30) - _B29
+                rate = p[P_DEFL_RATE]
+                if rate <= 0:
+                    sp = goal
+                elif goal > sp + rate:
+                    sp = sp + rate
+                elif goal < sp - rate:
+                    sp = sp - rate
+                else:
+                    sp = goal
+                c[DEFL_SP] = sp
+                cmd = int(pi.update(sp - defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
+            if meas:
+                # Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room /
+                # slow_zone_um, so a fast approach slows over the last slow_zone_um and stops at
+                # the limit, while a smaller command (a loop holding a target inside the zone)
+                # passes unchanged.
+                room = 1
+                if cmd > 0:
+                    room = (((p[P_STROKE_MAX] + _B29) & _M30) - _B29) - (d1 if d1 > d2 else d2)
+                elif cmd < 0:
+                    room = (d1 if d1 < d2 else d2) - (((p[P_STROKE_MIN] + _B29) & _M30) - _B29)
+                if room <= 0:
+                    cmd = 0
+                elif room < p[P_SLOW_ZONE]:
+                    cap = (_DUTY_MAX * room) // p[P_SLOW_ZONE]  # room < zone <= 65535: < 2**30
+                    if cmd > cap:
+                        cmd = cap
+                    elif cmd < -cap:
+                        cmd = -cap
+            # slew: the duty moves at most `slew` per step toward the command (0 = no limit)
+            prev = ((c[DUTY] + _B29) & _M30) - _B29
+            rate = p[P_SLEW]
+            duty = cmd
+            if rate > 0:
+                if cmd > prev + rate:
+                    duty = prev + rate
+                elif cmd < prev - rate:
+                    duty = prev - rate
             if mode != OPEN_LOOP:
-                self.pi.applied(duty)
+                pi.applied(duty)
         self.motor.set(duty)
-        self.duty = duty
-        self.steps += 1
-        self.t_us = (self.t_us + self.period_us) & _T_MASK
-        r = self.ring
-        if r.due():
-            if m is None:
-                r.write_record(self.t_us, s.raw1, s.raw2, s.raw_ref, 0, 0, 0, 0, self.target, duty, mode, sf.faults)
-            else:
-                r.write_record(
-                    self.t_us, s.raw1, s.raw2, s.raw_ref, m.d1, m.d2, m.defl, m.force, self.target, duty, mode, sf.faults
-                )
+        c[DUTY] = duty
+        n = c[STEPS]
+        c[STEPS] = 0 if n == _MASK else n + 1
+        t = c[T_US]
+        if t > _MASK - period:  # t + period would reach 2**30: wrap without forming it
+            t = t - (_MASK - period) - 1
+        else:
+            t = t + period
+        c[T_US] = t
+        r = ptr32(self.rec)
+        r[_R_T] = t
+        r[_R_RAW1] = s[_S_RAW1]
+        r[_R_RAW2] = s[_S_RAW2]
+        r[_R_REF] = s[_S_RAW_REF]
+        r[_R_D1] = d1
+        r[_R_D2] = d2
+        r[_R_DEFL] = defl
+        r[_R_FORCE] = force
+        r[_R_TARGET] = c[TARGET]
+        r[_R_DUTY] = duty
+        r[_R_MODE] = mode
+        r[_R_FAULTS] = f[_F_FAULTS]
+        self.ring.push(self.rec)
+        dt = (int(self._ticks()) - t0) & _MASK
+        if dt > c[STEP_US_MAX]:
+            c[STEP_US_MAX] = dt
+        if (late or dt >= period) and c[OVERRUNS] < _MASK:
+            c[OVERRUNS] = c[OVERRUNS] + 1
 
     def set_force_target(self, force_mN):
         """Outside the interrupt: the deformation targets of a new force target (through the
@@ -173,26 +335,4 @@ class Controller:
         spare[3] = force_mN
         self._spare_set = self.force_set
         self.force_set = spare
-        self.target = force_mN
-
-    def _stroke_limit(self, cmd, d1, d2):
-        """Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room / slow_zone_um,
-        so a fast approach slows over the last slow_zone_um and stops at the limit, while a
-        smaller command (a loop holding a target inside the zone) passes unchanged."""
-        p = self.p
-        if cmd > 0:
-            room = p[P_STROKE_MAX] - (d1 if d1 > d2 else d2)
-        elif cmd < 0:
-            room = (d1 if d1 < d2 else d2) - p[P_STROKE_MIN]
-        else:
-            return 0
-        if room <= 0:
-            return 0
-        zone = p[P_SLOW_ZONE]
-        if room < zone:
-            cap = (DUTY_MAX * room) // zone  # room < zone <= 65535: < 2**30
-            if cmd > cap:
-                return cap
-            if cmd < -cap:
-                return -cap
-        return cmd
+        self.st[TARGET] = force_mN

@@ -16,25 +16,45 @@ F0 per step) would walk the band; filtered over 32 steps it still biased the est
 last (+1: the spring force fell, the block slid toward 0 mm; -1: toward 60 mm). A force target
 becomes one deformation target per edge (`deformation_targets`, F0 = target - h * s): the
 controller drives the spring to the edge from which the load's force moves toward the target.
-The integer math is B's (bcm_fixed, pwl_fixed, poly_fixed); it allocates nothing and keeps its
+The integer math (bcm_fixed, pwl_fixed, poly_fixed) allocates nothing and keeps its
 intermediates within +-2**30. Positions are clamped to +-STROKE_CLAMP_UM so that d and every
 error the controllers form from them stay within +-2**17; the filtered force is in mN * 32.
+The values the step produces live in one int32 block, `Measurement.st` (indices below); d1, d2,
+defl, force, dir, fs32 and out32 are properties over it.
 """
 
-from firmware.portable import const
+from firmware.bcm_fixed import bcm3
+from firmware.poly_fixed import poly
+from firmware.portable import const, ptr32, zeros
+from firmware.pwl_fixed import pwl
+
+try:
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler
+except ImportError:  # CPython
+    from firmware import portable as micropython
 
 STROKE_CLAMP_UM = const(65535)
 FORCE_CLAMP_MN = const(1000000)
 
-try:
-    from firmware.bcm_fixed import bcm3
-    from firmware.poly_fixed import poly
-    from firmware.pwl_fixed import pwl
+# Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
+# unix port, so a word that may be negative is read as ((v + 2**29) & (2**30 - 1)) - 2**29, the
+# identity for every value in [-2**29, 2**29) wherever the load came from (all of ours are).
+_B29 = const(536870912)
+_M30 = const(1073741823)
 
-    MATH_ERROR = None
-except ImportError as exc:  # B's modules not installed on this board yet
-    bcm3 = pwl = poly = None
-    MATH_ERROR = "fixed-point math modules missing (%s)" % exc
+# Measurement.st
+D1 = const(0)  # D1*, um (D1 when Df is not calibrated)
+D2 = const(1)
+DEFL = const(2)
+FORCE = const(3)  # mN: the load's force (play operator) with friction, else F0(d)
+DIR = const(4)  # which band edge moved last (+1: toward 0 mm, -1: toward 60 mm); diagnostic
+FS32 = const(5)  # spring force F0(d) low-passed, mN * 32
+OUT32 = const(6)  # the play operator's output (the load's force), mN * 32
+PRIMED = const(7)  # 1 once FS32 and OUT32 start from a measured force
+FRIC = const(8)  # the block's friction h, mN (0 without a friction section)
+HAS_DF = const(9)
+HAS_FORCE = const(10)
+WORDS = const(11)
 
 
 def _clamp_um(x):
@@ -57,8 +77,6 @@ class Measurement:
     """Holds the calibration constants and the latest converted values (all ints)."""
 
     def __init__(self, calibration):
-        if MATH_ERROR is not None:
-            raise ValueError(MATH_ERROR)
         kind1, self.k1 = calibration.pot1
         kind2, self.k2 = calibration.pot2
         self.conv1 = _converter(kind1)
@@ -68,15 +86,43 @@ class Measurement:
         self.k_force = calibration.force
         self.k_force_inv = calibration.force_inverse
         fr = getattr(calibration, "friction", None)  # [h mN] or None
-        self.fric = fr[0] if fr is not None else 0
-        self.d1 = 0  # D1*, um (D1 when Df is not calibrated)
-        self.d2 = 0
-        self.defl = 0
-        self.force = 0
-        self.dir = 0  # which band edge moved last (+1: toward 0 mm, -1: toward 60 mm); diagnostic
-        self.fs32 = 0  # spring force F0(d) low-passed, mN * 32
-        self.out32 = 0  # the play operator's output (the load's force), mN * 32
-        self.primed = False
+        st = zeros(WORDS)
+        self.st = st
+        st[FRIC] = fr[0] if fr is not None else 0
+        st[HAS_DF] = 1 if self.k_df is not None else 0
+        st[HAS_FORCE] = 1 if self.k_force is not None else 0
+
+    @property
+    def d1(self):
+        return self.st[D1]
+
+    @property
+    def d2(self):
+        return self.st[D2]
+
+    @property
+    def defl(self):
+        return self.st[DEFL]
+
+    @property
+    def force(self):
+        return self.st[FORCE]
+
+    @property
+    def dir(self):
+        return self.st[DIR]
+
+    @property
+    def fric(self):
+        return self.st[FRIC]
+
+    @property
+    def fs32(self):
+        return self.st[FS32]
+
+    @property
+    def out32(self):
+        return self.st[OUT32]
 
     def missing_for(self, mode_name):
         """None when `mode_name` can run with this calibration, else the reason it cannot."""
@@ -87,40 +133,61 @@ class Measurement:
                 return "force mode needs the force calibration F0(d) and d(F0)"
         return None
 
-    def update(self, raw1, raw2):
-        d1 = _clamp_um(self.conv1(raw1, self.k1))
-        if self.k_df is not None:
-            d1 = _clamp_um(d1 - self.poly(d1, self.k_df))
-        d2 = _clamp_um(self.conv2(raw2, self.k2))
-        self.d1 = d1
-        self.d2 = d2
-        self.defl = d1 - d2
-        if self.k_force is not None:
-            f = self.poly(self.defl, self.k_force)
-            self.force = self._load_force(f) if self.fric else f
+    @micropython.viper
+    def update(self, raw1: int, raw2: int):
+        s = ptr32(self.st)
+        d1 = int(self.conv1(raw1, self.k1))
+        if d1 > STROKE_CLAMP_UM:
+            d1 = STROKE_CLAMP_UM
+        elif d1 < -STROKE_CLAMP_UM:
+            d1 = -STROKE_CLAMP_UM
+        if s[HAS_DF]:
+            d1 = d1 - int(self.poly(d1, self.k_df))
+            if d1 > STROKE_CLAMP_UM:
+                d1 = STROKE_CLAMP_UM
+            elif d1 < -STROKE_CLAMP_UM:
+                d1 = -STROKE_CLAMP_UM
+        d2 = int(self.conv2(raw2, self.k2))
+        if d2 > STROKE_CLAMP_UM:
+            d2 = STROKE_CLAMP_UM
+        elif d2 < -STROKE_CLAMP_UM:
+            d2 = -STROKE_CLAMP_UM
+        s[D1] = d1
+        s[D2] = d2
+        s[DEFL] = d1 - d2
+        if not s[HAS_FORCE]:
+            return
+        f = int(self.poly(d1 - d2, self.k_force))
+        s[FORCE] = int(self._load_force(f)) if s[FRIC] else f
 
-    def _load_force(self, spring_mN):
+    @micropython.viper
+    def _load_force(self, f: int) -> int:
+        """The load's force: a play operator of width h on F0(d) low-passed over 64 steps."""
+        s = ptr32(self.st)
         # A file's F0 may reach 2**29 mN (poly_fixed's bound); 1 kN is far beyond any spring
-        # here and keeps x << 5 and the differences below within 2**30 (h <= 10 N).
-        if spring_mN > FORCE_CLAMP_MN:
-            spring_mN = FORCE_CLAMP_MN
-        elif spring_mN < -FORCE_CLAMP_MN:
-            spring_mN = -FORCE_CLAMP_MN
-        x = spring_mN << 5
-        if not self.primed:
-            self.fs32 = x
-            self.out32 = x
-            self.primed = True
-        f = self.fs32 + ((x - self.fs32) >> 6)
-        self.fs32 = f
-        h = self.fric << 5
-        if f > self.out32 + h:
-            self.out32 = f - h
-            self.dir = -1
-        elif f < self.out32 - h:
-            self.out32 = f + h
-            self.dir = 1
-        return self.out32 >> 5
+        # here and keeps f << 5 and the differences below within 2**30 (h <= 10 N).
+        if f > FORCE_CLAMP_MN:
+            f = FORCE_CLAMP_MN
+        elif f < -FORCE_CLAMP_MN:
+            f = -FORCE_CLAMP_MN
+        x = f << 5
+        if not s[PRIMED]:
+            s[FS32] = x
+            s[OUT32] = x
+            s[PRIMED] = 1
+        fs = ((s[FS32] + _B29) & _M30) - _B29
+        fs = fs + ((x - fs) >> 6)
+        s[FS32] = fs
+        h = s[FRIC] << 5
+        out = ((s[OUT32] + _B29) & _M30) - _B29
+        if fs > out + h:
+            out = fs - h
+            s[DIR] = -1
+        elif fs < out - h:
+            out = fs + h
+            s[DIR] = 1
+        s[OUT32] = out
+        return out >> 5
 
     def deformation_for(self, force_mN):
         """Target deformation for a target spring force, through the fitted inverse d(F0)."""
@@ -129,7 +196,8 @@ class Measurement:
     def deformation_targets(self, force_mN, out):
         """Fill out[s + 1] (s = -1, 0, +1) with the deformation that makes the load feel
         `force_mN` when the block's friction acts with direction s (see the module docstring)."""
+        h = self.st[FRIC]
         s = -1
         while s <= 1:
-            out[s + 1] = self.deformation_for(force_mN - self.fric * s)
+            out[s + 1] = self.deformation_for(force_mN - h * s)
             s += 1

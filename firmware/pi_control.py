@@ -7,14 +7,31 @@ duty in [-DUTY_MAX, DUTY_MAX]. Gains are Q8 integers:
 Bounds that keep every intermediate within +-2**30 on 32-bit boards: |e| is clamped to
 E_MAX = 32767 and the gains to 0..32767, so |kp * e| <= 32767**2 < 2**30; the P term is then
 <= 2**22, the I state <= 10000 * 256 < 2**22, and their sum stays far below 2**30.
+The loop's state is one int32 block, `PI.st`; `integ`, `out` and `saturated` are properties.
 """
 
-from firmware.portable import const
+from firmware.portable import const, ptr32, zeros
+
+try:
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler
+except ImportError:  # CPython
+    from firmware import portable as micropython
 
 DUTY_MAX = const(10000)  # signed duty range of the whole firmware: 10000 = 100.00 %
 E_MAX = const(32767)
 GAIN_MAX = const(32767)
 Q = const(8)
+
+# Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
+# unix port, so a word that may be negative is read as ((v + 2**29) & (2**30 - 1)) - 2**29, the
+# identity for every value in [-2**29, 2**29) wherever the load came from (all of ours are).
+_B29 = const(536870912)
+_M30 = const(1073741823)
+
+# PI.st
+INTEG = const(0)  # integral, Q8 duty
+OUT = const(1)  # the last output
+SAT = const(2)  # +1 / -1 when the last output hit a limit (its own or downstream), else 0
 
 
 def clamp(x, lo, hi):
@@ -37,19 +54,32 @@ def slew(prev, cmd, step):
 
 
 class PI:
-    """One PI loop. `integ` is the integral state in Q8 duty; reset() clears it."""
+    """One PI loop; reset() clears it."""
 
     def __init__(self):
-        self.integ = 0
-        self.out = 0
-        self.saturated = 0  # +1 / -1 when the last output hit the limit, else 0
+        self.st = zeros(3)
+
+    @property
+    def integ(self):
+        return self.st[INTEG]
+
+    @property
+    def out(self):
+        return self.st[OUT]
+
+    @property
+    def saturated(self):
+        return self.st[SAT]
 
     def reset(self):
-        self.integ = 0
-        self.out = 0
-        self.saturated = 0
+        st = self.st
+        st[INTEG] = 0
+        st[OUT] = 0
+        st[SAT] = 0
 
-    def update(self, e, kp, ki, out_limit, int_limit):
+    @micropython.viper
+    def update(self, e: int, kp: int, ki: int, out_limit: int, int_limit: int) -> int:
+        s = ptr32(self.st)
         if e > E_MAX:
             e = E_MAX
         elif e < -E_MAX:
@@ -58,28 +88,41 @@ class PI:
         # Anti-windup (conditional integration): do not integrate an error that pushes further
         # into a limit the output is already at, whether this step's output limit or (flag from
         # applied()) the stroke and slew limits downstream.
-        u = p + (self.integ >> Q)
-        push = 1 if (u >= out_limit or self.saturated > 0) else (-1 if (u <= -out_limit or self.saturated < 0) else 0)
+        integ = ((s[INTEG] + _B29) & _M30) - _B29
+        sat = ((s[SAT] + _B29) & _M30) - _B29
+        u = p + (integ >> Q)
+        push = 0
+        if u >= out_limit or sat > 0:
+            push = 1
+        elif u <= -out_limit or sat < 0:
+            push = -1
         if not ((push > 0 and e > 0) or (push < 0 and e < 0)):
             lim = int_limit << Q
-            self.integ = clamp(self.integ + ((ki * e) >> Q), -lim, lim)
-            u = p + (self.integ >> Q)
+            integ += (ki * e) >> Q
+            if integ > lim:
+                integ = lim
+            elif integ < -lim:
+                integ = -lim
+            s[INTEG] = integ
+            u = p + (integ >> Q)
         if u >= out_limit:
             u = out_limit
-            self.saturated = 1
+            s[SAT] = 1
         elif u <= -out_limit:
             u = -out_limit
-            self.saturated = -1
+            s[SAT] = -1
         else:
-            self.saturated = 0
-        self.out = u
+            s[SAT] = 0
+        s[OUT] = u
         return u
 
-    def applied(self, duty):
+    @micropython.viper
+    def applied(self, duty: int):
         """Tell the loop what actually reached the motor after stroke and slew limits: when
         less than asked in the output's direction, treat it as saturated (no wind-up)."""
-        u = self.out
+        s = ptr32(self.st)
+        u = ((s[OUT] + _B29) & _M30) - _B29
         if u > 0 and duty < u:
-            self.saturated = 1
+            s[SAT] = 1
         elif u < 0 and duty > u:
-            self.saturated = -1
+            s[SAT] = -1

@@ -1,6 +1,7 @@
 """What lets one firmware source run under MicroPython and, for tests, under CPython.
 
-`const` comes from MicroPython where it exists; `ptr32` stands in for viper's cast under CPython. The code emitters are NOT run-time functions:
+`const` and `ticks_us` come from MicroPython where they exist; `ptr32` stands in for viper's
+cast under CPython. The code emitters are NOT run-time functions:
 MicroPython's compiler selects them only for the literal decorators `@micropython.native` and
 `@micropython.viper`. A module that wants one therefore writes
 
@@ -15,12 +16,33 @@ MicroPython's compiler selects them only for the literal decorators `@micropytho
 and under CPython this module stands in for `micropython` with identity decorators.
 """
 
+from array import array
+
 try:
     from micropython import const  # noqa: F401
 except ImportError:  # CPython
 
     def const(value):
         return value
+
+try:
+    from time import ticks_us  # noqa: F401  (MicroPython: a 30-bit wrapping microsecond clock)
+except ImportError:  # CPython
+    import time as _time
+
+    def ticks_us():
+        return (_time.perf_counter_ns() // 1000) & 0x3FFFFFFF
+
+
+def zeros(n):
+    """array('i') of n zeros, built without a throw-away list as large as itself (on a board's
+    small heap such a list costs as much again as the array and fragments what is left)."""
+    a = array("i", range(n))
+    i = 0
+    while i < n:
+        a[i] = 0
+        i += 1
+    return a
 
 
 def ptr32(buf):

@@ -3,9 +3,17 @@
 The control step records faults as integers only (a bit mask plus the pot and code for a rail
 fault): an interrupt cannot build strings. Text is made later, in the main loop, by describe().
 Any latched fault keeps the motor off and the mode idle until App.reset().
+
+The words the step touches live in one int32 block, `Safety.st` (indices below); `faults`,
+`last`, `rail_value` and `silence` are properties over it.
 """
 
-from firmware.portable import const
+from firmware.portable import const, ptr32, zeros
+
+try:
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler
+except ImportError:  # CPython
+    from firmware import portable as micropython
 
 FAULT_RAIL_POT1 = const(1)
 FAULT_RAIL_POT2 = const(2)
@@ -25,44 +33,89 @@ FAULT_NAMES = (
     (FAULT_SOFT_RESET, "soft_reset"),
 )
 
+# Safety.st
+FAULTS = const(0)  # latched fault bits
+LAST = const(1)  # the most recent fault bit
+RAIL_VALUE = const(2)  # the code of a rail fault
+SILENCE = const(3)  # steps since the host was last heard, capped at SILENCE_CAP
+SILENCE_LIMIT = const(4)  # steps; 0 = watchdog off
+WORDS = const(5)
+# With the watchdog off the silence count still stops here, so it never leaves 31 bits however
+# long the board runs (2**29 steps is 6 days at 1 kHz; the longest timeout is 600 000 steps).
+SILENCE_CAP = const(536870912)
+
 
 class Safety:
     def __init__(self, loop_hz, full_scale):
         self.loop_hz = loop_hz
         self.full_scale = full_scale
-        self.faults = 0
-        self.last = 0  # the most recent fault bit
-        self.rail_value = 0
+        self.st = zeros(WORDS)
         self.exc = None  # the exception object of a step/run failure (kept, not formatted)
-        self.silence = 0  # steps since the host was last heard
-        self.silence_limit = 0  # steps; 0 = watchdog off
         self.timeout_ms = 0
+
+    @property
+    def faults(self):
+        return self.st[FAULTS]
+
+    @property
+    def last(self):
+        return self.st[LAST]
+
+    @property
+    def rail_value(self):
+        return self.st[RAIL_VALUE]
+
+    @rail_value.setter
+    def rail_value(self, v):
+        self.st[RAIL_VALUE] = v
+
+    @property
+    def silence(self):
+        return self.st[SILENCE]
+
+    @silence.setter
+    def silence(self, v):
+        self.st[SILENCE] = v
+
+    @property
+    def silence_limit(self):
+        return self.st[SILENCE_LIMIT]
 
     def set_timeout_ms(self, ms):
         self.timeout_ms = ms
-        self.silence_limit = (ms * self.loop_hz) // 1000 if ms > 0 else 0
+        self.st[SILENCE_LIMIT] = (ms * self.loop_hz) // 1000 if ms > 0 else 0
 
     def heard(self):
-        self.silence = 0
+        self.st[SILENCE] = 0
 
-    def tick(self):
+    @micropython.viper
+    def tick(self) -> bool:
         """Once per step while the motor may run: True when the host has been silent too long."""
-        self.silence += 1
-        if self.silence_limit and self.silence >= self.silence_limit:
-            self.silence = self.silence_limit  # stays bounded however long the host is gone
+        s = ptr32(self.st)
+        n = s[SILENCE]
+        if n < SILENCE_CAP:
+            n += 1
+        lim = s[SILENCE_LIMIT]
+        if lim and n >= lim:
+            n = lim  # stays bounded however long the host is gone
+            s[SILENCE] = n
             return True
+        s[SILENCE] = n
         return False
 
-    def trip(self, bit):
-        self.faults |= bit
-        self.last = bit
+    @micropython.viper
+    def trip(self, bit: int):
+        s = ptr32(self.st)
+        s[FAULTS] = s[FAULTS] | bit
+        s[LAST] = bit
 
     def clear(self):
-        self.faults = 0
-        self.last = 0
-        self.rail_value = 0
+        st = self.st
+        st[FAULTS] = 0
+        st[LAST] = 0
+        st[RAIL_VALUE] = 0
+        st[SILENCE] = 0
         self.exc = None
-        self.silence = 0
 
     def names(self):
         return [name for bit, name in FAULT_NAMES if self.faults & bit]

@@ -5,14 +5,39 @@ bits (read_u16 is left-aligned to 16 bits on every port). A wiper that lifts off
 as a rail (0 or full scale); `rail_reads` consecutive raw reads at a rail on one pot is a fault
 that names the pot and the value. Reads are counted individually (not per averaged sample) so
 that with oversample >= rail_reads the fault trips in the same step the reads go bad.
+
+What the step reads and writes lives in one int32 block, `Sampler.st` (indices below), so the
+viper step touches it with single loads and stores; the attributes people and tests use
+(raw1, rail, rail_reads, ...) are properties over the same block.
 """
 
 from firmware import hal
-from firmware.portable import const
+from firmware.portable import const, ptr32, zeros
+
+try:
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler
+except ImportError:  # CPython
+    from firmware import portable as micropython
 
 NO_RAIL = const(0)
 RAIL_POT1 = const(1)
 RAIL_POT2 = const(2)
+
+# Sampler.st
+RAW1 = const(0)  # pot 1 code, native bits, mean of the step's reads (rounded half up)
+RAW2 = const(1)
+RAW_REF = const(2)  # reference channel (0 when the board has none)
+RAIL = const(3)  # which pot tripped (latched until clear_rail)
+RAIL_VALUE = const(4)  # the code it read
+RUN1 = const(5)  # consecutive rail reads so far, per pot, capped at NEED (bounded for any uptime)
+RUN2 = const(6)
+N = const(7)  # reads per channel per step (oversample)
+SHIFT = const(8)  # 16 - adc_bits
+LO = const(9)  # a read <= LO or >= HI is at a rail
+HI = const(10)
+NEED = const(11)  # rail_reads
+HAS_REF = const(12)
+WORDS = const(13)
 
 
 class Sampler:
@@ -28,65 +53,109 @@ class Sampler:
         self.adc2 = hal.adc(machine, pins["pot2"])
         ref = pins.get("reference")
         self.adc_ref = hal.adc(machine, ref) if ref is not None else None
-        self.raw1 = 0
-        self.raw2 = 0
-        self.raw_ref = 0
-        self.rail_margin = 0  # codes from a rail that still count as "at the rail"
-        self.rail_reads = 4  # consecutive reads at a rail that make a fault
-        self._run1 = 0
-        self._run2 = 0
-        self.rail = NO_RAIL  # which pot tripped (latched until clear_rail)
-        self.rail_value = 0  # the code it read
+        st = zeros(WORDS)
+        self.st = st
+        st[N] = self.oversample
+        st[SHIFT] = self.shift
+        st[HAS_REF] = 1 if ref is not None else 0
+        self._margin = 0
+        self.rail_reads = 4
+        self.rail_margin = 0
+
+    # --- the block's fields, for people and tests -----------------------------------------------
+    @property
+    def raw1(self):
+        return self.st[RAW1]
+
+    @property
+    def raw2(self):
+        return self.st[RAW2]
+
+    @property
+    def raw_ref(self):
+        return self.st[RAW_REF]
+
+    @property
+    def rail(self):
+        return self.st[RAIL]
+
+    @property
+    def rail_value(self):
+        return self.st[RAIL_VALUE]
+
+    @property
+    def rail_reads(self):
+        """Consecutive reads at a rail that make a fault."""
+        return self.st[NEED]
+
+    @rail_reads.setter
+    def rail_reads(self, n):
+        self.st[NEED] = n
+
+    @property
+    def rail_margin(self):
+        """Codes from a rail that still count as "at the rail"."""
+        return self._margin
+
+    @rail_margin.setter
+    def rail_margin(self, m):
+        self._margin = m
+        self.st[LO] = m
+        self.st[HI] = self.full - m
 
     def clear_rail(self):
-        self.rail = NO_RAIL
-        self.rail_value = 0
-        self._run1 = 0
-        self._run2 = 0
+        st = self.st
+        st[RAIL] = NO_RAIL
+        st[RAIL_VALUE] = 0
+        st[RUN1] = 0
+        st[RUN2] = 0
 
+    @micropython.viper
     def sample(self):
-        """One step's sample: sets raw1, raw2, raw_ref (native bits) and may latch a rail fault."""
-        n = self.oversample
-        shift = self.shift
-        lo = self.rail_margin
-        hi = self.full - self.rail_margin
-        need = self.rail_reads
+        """One step's sample: sets RAW1, RAW2, RAW_REF (native bits) and may latch a rail fault.
+        Allocation-free: read_u16() is called as a method (no bound method is made)."""
+        s = ptr32(self.st)
         a1 = self.adc1
         a2 = self.adc2
+        n = s[N]
+        shift = s[SHIFT]
+        lo = s[LO]
+        hi = s[HI]
+        need = s[NEED]
         s1 = 0
         s2 = 0
-        run1 = self._run1
-        run2 = self._run2
+        run1 = s[RUN1]
+        run2 = s[RUN2]
         i = 0
         while i < n:
-            c1 = a1.read_u16() >> shift
-            c2 = a2.read_u16() >> shift
+            c1 = int(a1.read_u16()) >> shift
+            c2 = int(a2.read_u16()) >> shift
             s1 += c1  # <= 64 * 65535 < 2**22
             s2 += c2
             if c1 <= lo or c1 >= hi:
                 run1 += 1
-                if run1 >= need and self.rail == NO_RAIL:
-                    self.rail = RAIL_POT1
-                    self.rail_value = c1
+                if run1 >= need and s[RAIL] == NO_RAIL:
+                    s[RAIL] = RAIL_POT1
+                    s[RAIL_VALUE] = c1
             else:
                 run1 = 0
             if c2 <= lo or c2 >= hi:
                 run2 += 1
-                if run2 >= need and self.rail == NO_RAIL:
-                    self.rail = RAIL_POT2
-                    self.rail_value = c2
+                if run2 >= need and s[RAIL] == NO_RAIL:
+                    s[RAIL] = RAIL_POT2
+                    s[RAIL_VALUE] = c2
             else:
                 run2 = 0
             i += 1
-        self._run1 = run1 if run1 < need else need
-        self._run2 = run2 if run2 < need else need
-        self.raw1 = (s1 + (n >> 1)) // n
-        self.raw2 = (s2 + (n >> 1)) // n
-        ar = self.adc_ref
-        if ar is not None:
-            s = 0
+        s[RUN1] = run1 if run1 < need else need
+        s[RUN2] = run2 if run2 < need else need
+        s[RAW1] = (s1 + (n >> 1)) // n
+        s[RAW2] = (s2 + (n >> 1)) // n
+        if s[HAS_REF]:
+            ar = self.adc_ref
+            t = 0
             i = 0
             while i < n:
-                s += ar.read_u16() >> shift
+                t += int(ar.read_u16()) >> shift
                 i += 1
-            self.raw_ref = (s + (n >> 1)) // n
+            s[RAW_REF] = (t + (n >> 1)) // n

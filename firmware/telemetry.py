@@ -4,11 +4,19 @@ This module is the one source of truth for the record layout: every field is an 
 order of FIELDS. The control step (a hard interrupt on a board) is the only writer; the main
 loop (the link) is the only reader. Writer and reader each own one counter, so no lock is needed
 and nothing is allocated on either side.
+
+The ring's storage is a bytearray (made zeroed, with no throw-away list as large as itself)
+written and read as int32 words by viper code. The counters live in one int32 block, `Ring.st`;
+`head`, `tail`, `dropped` and `every` are properties over it. head and tail count records
+modulo 2**30, stepped without ever forming 2**30, so they stay small ints for any uptime.
 """
 
-from array import array
+from firmware.portable import const, ptr32, zeros
 
-from firmware.portable import const
+try:
+    import micropython  # @micropython.viper is resolved by MicroPython's compiler
+except ImportError:  # CPython
+    from firmware import portable as micropython
 
 FIELDS = (
     "t_us",  # loop time since start, us (step count x period, wraps at 2**30)
@@ -28,80 +36,126 @@ RECORD_WORDS = const(12)
 RECORD_BYTES = const(48)
 _MASK = const(0x3FFFFFFF)  # counters wrap inside the 31-bit small-int range of 32-bit boards
 
+# Ring.st
+HEAD = const(0)  # records written, mod 2**30; only the writer changes it
+TAIL = const(1)  # records consumed, mod 2**30; only the reader changes it
+DROPPED = const(2)  # records overwritten before the reader got to them (saturates at 2**30 - 1)
+EVERY = const(3)  # decimation: a record every EVERY steps (0 = recording off)
+COUNTDOWN = const(4)
+NREC = const(5)  # ring size in records
+SLOT = const(6)  # HEAD % NREC, kept by the writer so that the step divides nothing
+WORDS = const(7)
+
 
 class Ring:
-    """A preallocated ring of `n_records` telemetry records.
-
-    `every` is the decimation: a record is kept every `every` steps (0 = recording off).
-    `dropped` counts records overwritten before the reader got to them.
-    """
+    """A preallocated ring of `n_records` telemetry records."""
 
     def __init__(self, n_records=128):
-        if n_records < 1:
-            raise ValueError("ring needs at least one record")
+        # a power of two divides 2**30, so slot = count % n stays consistent across the counters' wrap
+        if n_records < 1 or n_records & (n_records - 1) or n_records > 1 << 16:
+            raise ValueError("ring size must be a power of two, 1..65536 records")
         self.n = n_records
-        self.buf = array("i", [0] * (n_records * RECORD_WORDS))
-        self.head = 0  # records written (masked); only the writer changes it
-        self.tail = 0  # records consumed (masked); only the reader changes it
-        self.dropped = 0
-        self.every = 0
-        self._countdown = 0
+        self.buf = bytearray(n_records * RECORD_BYTES)
+        self.st = zeros(WORDS)
+        self.st[NREC] = n_records
+
+    @property
+    def head(self):
+        return self.st[HEAD]
+
+    @head.setter
+    def head(self, v):
+        self.st[HEAD] = v
+
+    @property
+    def tail(self):
+        return self.st[TAIL]
+
+    @tail.setter
+    def tail(self, v):
+        self.st[TAIL] = v
+
+    @property
+    def dropped(self):
+        return self.st[DROPPED]
+
+    @property
+    def every(self):
+        return self.st[EVERY]
+
+    @every.setter
+    def every(self, v):
+        self.st[EVERY] = v
 
     def clear(self):
-        self.tail = self.head
-        self.dropped = 0
+        self.st[TAIL] = self.st[HEAD]
+        self.st[DROPPED] = 0
 
-    def due(self):
-        """Called once per step by the writer: True when this step's record should be kept."""
-        if self.every <= 0:
+    @micropython.viper
+    def push(self, rec) -> bool:
+        """Called once per step by the writer with the step's record (RECORD_WORDS int32s):
+        kept (True) every EVERY steps, overwriting the oldest when the reader is behind."""
+        s = ptr32(self.st)
+        every = s[EVERY]
+        if every <= 0:
             return False
-        self._countdown += 1
-        if self._countdown < self.every:
+        c = s[COUNTDOWN] + 1
+        if c < every:
+            s[COUNTDOWN] = c
             return False
-        self._countdown = 0
+        s[COUNTDOWN] = 0
+        head = s[HEAD]
+        src = ptr32(rec)
+        dst = ptr32(self.buf)
+        slot = s[SLOT]
+        i = slot * RECORD_WORDS
+        j = 0
+        while j < RECORD_WORDS:
+            dst[i + j] = src[j]
+            j += 1
+        slot += 1
+        if head == _MASK:
+            head = 0
+            slot = 0  # 2**30 records: NREC divides it, so the slots start over with the count
+        else:
+            head += 1
+        if slot == s[NREC]:
+            slot = 0
+        s[SLOT] = slot
+        s[HEAD] = head
         return True
-
-    def write_record(self, t_us, raw1, raw2, raw_ref, d1, d2, defl, force, target, duty, mode, faults):
-        buf = self.buf
-        i = (self.head % self.n) * RECORD_WORDS
-        buf[i] = t_us
-        buf[i + 1] = raw1
-        buf[i + 2] = raw2
-        buf[i + 3] = raw_ref
-        buf[i + 4] = d1
-        buf[i + 5] = d2
-        buf[i + 6] = defl
-        buf[i + 7] = force
-        buf[i + 8] = target
-        buf[i + 9] = duty
-        buf[i + 10] = mode
-        buf[i + 11] = faults
-        self.head = (self.head + 1) & _MASK
 
     def available(self):
         avail = (self.head - self.tail) & _MASK
         return avail if avail < self.n else self.n
 
-    def read_into(self, dst):
-        """Copy the oldest unread record into `dst` (array('i') of RECORD_WORDS); False if empty."""
+    @micropython.viper
+    def read_into(self, out) -> bool:
+        """Copy the oldest unread record into `out` (RECORD_WORDS int32s, e.g. a memoryview of an
+        array('I') frame slot); False if there is none."""
+        s = ptr32(self.st)
+        n = s[NREC]
+        src = ptr32(self.buf)
+        dst = ptr32(out)
         while True:
-            head = self.head
-            avail = (head - self.tail) & _MASK
+            head = s[HEAD]
+            tail = s[TAIL]
+            avail = (head - tail) & _MASK
             if avail == 0:
                 return False
-            if avail > self.n:
-                self.dropped += avail - self.n
-                self.tail = (head - self.n) & _MASK
-            tail = self.tail
-            i = (tail % self.n) * RECORD_WORDS
+            if avail > n:
+                d = s[DROPPED] + avail - n
+                s[DROPPED] = d if d < _MASK else _MASK
+                tail = (head - n) & _MASK
+                s[TAIL] = tail
+            i = (tail % n) * RECORD_WORDS
             j = 0
-            buf = self.buf
             while j < RECORD_WORDS:
-                dst[j] = buf[i + j]
+                dst[j] = src[i + j]
                 j += 1
             # The writer may have lapped us while copying (it runs in an interrupt): if the
             # slot was overwritten, the copy is torn; count it as dropped and take the next.
-            if ((self.head - tail) & _MASK) > self.n:
+            if ((s[HEAD] - tail) & _MASK) > n:
                 continue
-            self.tail = (tail + 1) & _MASK
+            s[TAIL] = 0 if tail == _MASK else tail + 1
             return True

@@ -388,18 +388,19 @@ def case_ring():
     r.every = 1
     dst = array("i", [0] * RECORD_WORDS)
     assert not r.read_into(dst)
+    rec = array("i", [0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, -11])  # a negative word comes back as it went
     i = 0
     while i < 6:
-        assert r.due()
-        r.write_record(i, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11)
+        rec[0] = i
+        assert r.push(rec)
         i += 1
     got = []
     while r.read_into(dst):
         got.append(dst[0])
-        assert list(dst[1:]) == list(range(1, 12))
+        assert list(dst[1:]) == list(range(1, 11)) + [-11]
     assert got == [2, 3, 4, 5] and r.dropped == 2, (got, r.dropped)
     r.every = 3
-    kept = [r.due() for _ in range(9)]
+    kept = [r.push(rec) for _ in range(9)]
     assert kept == [False, False, True] * 3, kept
     return {"dropped": r.dropped}
 

@@ -64,7 +64,8 @@ class _Loader(importlib.machinery.SourceFileLoader):
 
 class _Finder(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path, target=None):
-        if name.startswith("firmware."):
+        # firmware.portable is the CPython stand-in (its clock is the host's), not board code
+        if name.startswith("firmware.") and name != "firmware.portable":
             spec = importlib.machinery.PathFinder.find_spec(name, path)
             if spec is not None:
                 spec.loader = _Loader(name, spec.origin)
@@ -74,6 +75,8 @@ class _Finder(importlib.abc.MetaPathFinder):
 
 @pytest.fixture
 def instrumented():
+    import host.fixed_export  # noqa: F401  (host code keeps the plain firmware modules it imports)
+
     saved = {k: v for k, v in sys.modules.items() if k == "firmware" or k.startswith("firmware.")}
     for k in saved:
         del sys.modules[k]
