@@ -103,7 +103,8 @@ LAST_START = const(8)  # ticks_us (mod 2**30) at the start of the last step
 TIMED = const(9)  # 1 once LAST_START holds a step of this timer run
 STEP_US_MAX = const(10)  # the longest step since boot, us
 OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one or ran >= 1 period
-WORDS = const(12)
+HAS_MEAS = const(12)  # 1 while a Measurement is set (an int test is 2 instructions, `if obj` ~1300)
+WORDS = const(13)
 
 # the step's record for the telemetry ring, in the order of telemetry.FIELDS
 _R_T = const(0)
@@ -134,6 +135,7 @@ def _field(i):
 
 class Controller:
     def __init__(self, sampler, measurement, motor, ring, safety, loop_hz):
+        self.st = zeros(WORDS)
         self.sampler = sampler
         self.meas = measurement  # None without a usable calibration: raw readings only
         self.motor = motor
@@ -141,7 +143,6 @@ class Controller:
         self.safety = safety
         self.pi = PI()
         self.p = array("i", [d for _, d, _, _ in PARAMS])
-        self.st = zeros(WORDS)
         self.st[PERIOD] = 1000000 // loop_hz
         self.rec = zeros(12)  # the step's telemetry record, handed to the ring
         self._ticks = ticks_us
@@ -163,6 +164,15 @@ class Controller:
     step_us_max = _field(STEP_US_MAX)
     overruns = _field(OVERRUNS)
 
+    @property
+    def meas(self):
+        return self._meas
+
+    @meas.setter
+    def meas(self, m):
+        self._meas = m
+        self.st[HAS_MEAS] = 0 if m is None else 1
+
     def apply_params(self):
         """Push the parameters that live in other objects (call after changing self.p)."""
         self.safety.set_timeout_ms(self.p[P_HOST_TIMEOUT_MS])
@@ -173,13 +183,16 @@ class Controller:
         """The loop timer (re)starts: the first step has no previous one to be late against."""
         self.st[TIMED] = 0
 
+    # native, not viper: viper cannot bind `except ... as exc`; native still calls cheaper than bytecode
+    @micropython.native
     def step(self, _timer=None):
         """The timer callback. Never raises: a failure stops the motor and latches a fault."""
         try:
             self._step()
         except Exception as exc:  # a hard IRQ cannot propagate it, so record and stop
-            self.st[MODE] = IDLE
-            self.st[DUTY] = 0
+            c = self.st
+            c[MODE] = IDLE
+            c[DUTY] = 0
             self.safety.exc = exc
             self.safety.trip(FAULT_STEP_EXCEPTION)
             try:
@@ -211,13 +224,14 @@ class Controller:
         mode = c[MODE]
         if mode != IDLE and sf.tick():
             sf.trip(_FAULT_HOST_TIMEOUT)
-        meas = self.meas
+        has_meas = c[HAS_MEAS]
         d1 = 0
         d2 = 0
         defl = 0
         force = 0
         fric = 0
-        if meas:
+        if has_meas:
+            meas = self._meas
             meas.update(s[_S_RAW1], s[_S_RAW2])
             m = ptr32(meas.st)
             d1 = ((m[_M_D1] + _B29) & _M30) - _B29
@@ -268,7 +282,7 @@ class Controller:
                     sp = goal
                 c[DEFL_SP] = sp
                 cmd = int(pi.update(sp - defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
-            if meas:
+            if has_meas:
                 # Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room /
                 # slow_zone_um, so a fast approach slows over the last slow_zone_um and stops at
                 # the limit, while a smaller command (a loop holding a target inside the zone)

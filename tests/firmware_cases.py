@@ -80,7 +80,7 @@ def case_imports():
 def _run_steps(step, n):
     i = 0
     while i < n:
-        step()
+        step(None)
         i += 1
 
 
@@ -127,7 +127,7 @@ def case_rail_fault(path, pot):
     pin = app.board["adc_pins"][pot]
     adc = machine.adcs[pin]
     machine.rail(pin, adc.i, 65535)  # every read from the next step on is at the top rail
-    app.step()
+    app.step(None)
     st = app.status()
     assert pwm_duties(app) == [0, 0], pwm_duties(app)
     assert st["mode"] == "idle" and st["faults"] == ["rail_" + pot], st
@@ -153,7 +153,7 @@ def case_host_timeout(path):
     assert app.status()["mode"] == "position" and app.ctrl.duty != 0
     _run_steps(app.step, 9)  # 49 steps of silence
     assert app.status()["mode"] == "position"
-    app.step()  # the 50th
+    app.step(None)  # the 50th
     st = app.status()
     assert st["mode"] == "idle" and st["faults"] == ["host_timeout"], st
     assert pwm_duties(app) == [0, 0]
@@ -174,7 +174,7 @@ def case_step_exception(path):
     assert max(pwm_duties(app)) > 0
     good = app.sampler.adc2
     app.sampler.adc2 = BrokenADC()
-    app.step()  # must not raise: a hard IRQ cannot propagate it
+    app.step(None)  # must not raise: a hard IRQ cannot propagate it
     st = app.status()
     assert pwm_duties(app) == [0, 0]
     assert st["mode"] == "idle" and "step_exception" in st["faults"], st
@@ -193,7 +193,7 @@ def case_step_exception(path):
     if locked:
         micropython.heap_lock()
     try:
-        app.step()
+        app.step(None)
     finally:
         if locked:
             micropython.heap_unlock()
@@ -308,14 +308,14 @@ def case_slew(path):
     prev = 0
     steps = 0
     while app.ctrl.duty != 10000:
-        app.step()
+        app.step(None)
         assert abs(app.ctrl.duty - prev) <= 37
         prev = app.ctrl.duty
         steps += 1
         assert steps < 1000
     app.set_target(-10000)
     while app.ctrl.duty != -10000:
-        app.step()
+        app.step(None)
         assert abs(app.ctrl.duty - prev) <= 37
         prev = app.ctrl.duty
         steps += 1

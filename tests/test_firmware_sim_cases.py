@@ -61,7 +61,7 @@ def case_boot_calibration_file(good_path, bad_path):
     good = App("boards/sim.json", good_path)
     st = good.status()
     assert st["calibration_error"] is None and isinstance(st["calibration_crc"], int), st
-    good.step()
+    good.step(None)
     good.set_mode("position")
     good.set_mode("force")
     bad = App("boards/sim.json", bad_path)
@@ -74,7 +74,7 @@ def case_boot_calibration_file(good_path, bad_path):
         assert "calibration" in str(exc)
     bad.set_mode("open_loop")
     bad.set_target(1000)
-    bad.step()
+    bad.step(None)
     assert bad.ctrl.duty > 0 and bad.sampler.raw2 > 0
     missing = App("boards/sim.json", bad_path + ".absent")
     assert "no calibration file" in missing.status()["calibration_error"], missing.status()
