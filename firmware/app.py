@@ -103,8 +103,12 @@ class App:
             return
         try:
             meas = Measurement(cal)
-        except (ValueError, TypeError, AttributeError) as exc:
+        except (ValueError, TypeError, AttributeError, MemoryError) as exc:
             self.calibration_error = "calibration unusable: %s" % (exc,)
+            return
+        if meas.adc_bits != self.board["adc_bits"]:
+            self.calibration_error = "calibration made for a %d-bit ADC, this board's is %d-bit" % (
+                meas.adc_bits, self.board["adc_bits"])
             return
         meas.update(self.sampler.raw1, self.sampler.raw2)
         self.calibration = cal

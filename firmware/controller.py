@@ -146,6 +146,16 @@ class Controller:
         self.st[PERIOD] = 1000000 // loop_hz
         self.rec = zeros(12)  # the step's telemetry record, handed to the ring
         self._ticks = ticks_us
+        # Bound once here (binding allocates): viper code has no inline caches, so a method
+        # call looks in the instance, misses, then searches the class (~500 instructions on a
+        # Cortex-M0); a bound method kept on the instance is found by the first look.
+        self._sample = sampler.sample
+        self._tick = safety.tick
+        self._pi_update = self.pi.update
+        self._pi_applied = self.pi.applied
+        self._motor_set = motor.set
+        self._push = ring.push
+        self._body = self._step
         # Force mode: [deformation um for friction edge -1, 0, +1, force target mN]. Written
         # whole into the spare and swapped in by one assignment, so the step never sees a mix.
         self.force_set = zeros(4)
@@ -171,6 +181,7 @@ class Controller:
     @meas.setter
     def meas(self, m):
         self._meas = m
+        self._update = None if m is None else m.update  # bound once, as the others (below)
         self.st[HAS_MEAS] = 0 if m is None else 1
 
     def apply_params(self):
@@ -185,10 +196,10 @@ class Controller:
 
     # native, not viper: viper cannot bind `except ... as exc`; native still calls cheaper than bytecode
     @micropython.native
-    def step(self, _timer=None):
+    def step(self, _timer):
         """The timer callback. Never raises: a failure stops the motor and latches a fault."""
         try:
-            self._step()
+            self._body()
         except Exception as exc:  # a hard IRQ cannot propagate it, so record and stop
             c = self.st
             c[MODE] = IDLE
@@ -213,16 +224,15 @@ class Controller:
             c[TIMED] = 1
         c[LAST_START] = t0
         p = ptr32(self.p)
-        sampler = self.sampler
-        sampler.sample()
-        s = ptr32(sampler.st)
+        self._sample()
+        s = ptr32(self.sampler.st)
         sf = self.safety
         f = ptr32(sf.st)
         if s[_S_RAIL] != _NO_RAIL and not (f[_F_FAULTS] & (_FAULT_RAIL_POT1 | _FAULT_RAIL_POT2)):
             sf.rail_value = s[_S_RAIL_VALUE]
             sf.trip(_FAULT_RAIL_POT1 if s[_S_RAIL] == _RAIL_POT1 else _FAULT_RAIL_POT2)
         mode = c[MODE]
-        if mode != IDLE and sf.tick():
+        if mode != IDLE and self._tick():
             sf.trip(_FAULT_HOST_TIMEOUT)
         has_meas = c[HAS_MEAS]
         d1 = 0
@@ -231,9 +241,8 @@ class Controller:
         force = 0
         fric = 0
         if has_meas:
-            meas = self._meas
-            meas.update(s[_S_RAW1], s[_S_RAW2])
-            m = ptr32(meas.st)
+            self._update(s[_S_RAW1], s[_S_RAW2])
+            m = ptr32(self._meas.st)
             d1 = ((m[_M_D1] + _B29) & _M30) - _B29
             d2 = ((m[_M_D2] + _B29) & _M30) - _B29
             defl = ((m[_M_DEFL] + _B29) & _M30) - _B29
@@ -245,11 +254,10 @@ class Controller:
         duty = 0
         if mode != IDLE:
             cmd = 0
-            pi = self.pi
             if mode == OPEN_LOOP:
                 cmd = ((c[TARGET] + _B29) & _M30) - _B29
             elif mode == POSITION:
-                cmd = int(pi.update((((c[TARGET] + _B29) & _M30) - _B29) - d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
+                cmd = int(self._pi_update((((c[TARGET] + _B29) & _M30) - _B29) - d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
             else:
                 # With the block's friction h calibrated, the load's force only moves once the
                 # spring force leaves a band 2h wide around it: to lower it the spring works from
@@ -281,7 +289,7 @@ class Controller:
                 else:
                     sp = goal
                 c[DEFL_SP] = sp
-                cmd = int(pi.update(sp - defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
+                cmd = int(self._pi_update(sp - defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
             if has_meas:
                 # Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room /
                 # slow_zone_um, so a fast approach slows over the last slow_zone_um and stops at
@@ -310,8 +318,8 @@ class Controller:
                 elif cmd < prev - rate:
                     duty = prev - rate
             if mode != OPEN_LOOP:
-                pi.applied(duty)
-        self.motor.set(duty)
+                self._pi_applied(duty)
+        self._motor_set(duty)
         c[DUTY] = duty
         n = c[STEPS]
         c[STEPS] = 0 if n == _MASK else n + 1
@@ -334,7 +342,7 @@ class Controller:
         r[_R_DUTY] = duty
         r[_R_MODE] = mode
         r[_R_FAULTS] = f[_F_FAULTS]
-        self.ring.push(self.rec)
+        self._push(self.rec)
         dt = (int(self._ticks()) - t0) & _MASK
         if dt > c[STEP_US_MAX]:
             c[STEP_US_MAX] = dt

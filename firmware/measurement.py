@@ -25,7 +25,9 @@ defl, force, dir, fs32 and out32 are properties over it.
 
 from firmware.bcm_fixed import bcm3
 from firmware.poly_fixed import poly
-from firmware.portable import const, ptr32, zeros
+from array import array
+
+from firmware.portable import const, ptr16, ptr32, zeros
 from firmware.pwl_fixed import pwl
 
 try:
@@ -54,7 +56,12 @@ PRIMED = const(7)  # 1 once FS32 and OUT32 start from a measured force
 FRIC = const(8)  # the block's friction h, mN (0 without a friction section)
 HAS_DF = const(9)
 HAS_FORCE = const(10)
-WORDS = const(11)
+TABLES = const(11)  # 1 when D1* and D2 come from the per-code tables
+LAST_CODE = const(12)  # the highest ADC code, 2**adc_bits - 1
+BASE1 = const(13)  # the tables hold D - BASE as uint16
+BASE2 = const(14)
+WORDS = const(15)
+TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
 
 def _clamp_um(x):
@@ -63,6 +70,11 @@ def _clamp_um(x):
     if x < -STROKE_CLAMP_UM:
         return -STROKE_CLAMP_UM
     return x
+
+
+def adc_bits_of(kind, k):
+    """The ADC width a pot's constants were exported for (their input shift says it)."""
+    return (29 if kind == "bcm3" else 16) - k[1 if kind == "pwl" else 0]
 
 
 def _converter(kind):
@@ -76,9 +88,12 @@ def _converter(kind):
 class Measurement:
     """Holds the calibration constants and the latest converted values (all ints)."""
 
-    def __init__(self, calibration):
+    def __init__(self, calibration, tabulate=True):
         kind1, self.k1 = calibration.pot1
         kind2, self.k2 = calibration.pot2
+        self.adc_bits = adc_bits_of(kind1, self.k1)
+        if adc_bits_of(kind2, self.k2) != self.adc_bits:
+            raise ValueError("pot1 and pot2 were calibrated for different ADC widths")
         self.conv1 = _converter(kind1)
         self.conv2 = _converter(kind2)
         self.poly = poly
@@ -91,6 +106,46 @@ class Measurement:
         st[FRIC] = fr[0] if fr is not None else 0
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
+        st[LAST_CODE] = (1 << self.adc_bits) - 1
+        self._play = self._load_force  # bound once: found in the instance by viper's first look
+        self.t1 = self.t2 = None
+        if tabulate and self.adc_bits <= TABLE_MAX_BITS:
+            self._tabulate()
+
+    def _tabulate(self):
+        """D1* and D2 for every ADC code, made once at boot by the same integer functions the
+        step would call (so the same bits as the host's), then looked up by the step: two
+        loads instead of two curve evaluations and the Df polynomial (~5000 Cortex-M0
+        instructions a step). Each table holds D - min(D) as uint16 (2**adc_bits x 2 bytes:
+        8 KiB at 12 bits); a curve spanning more than 65535 um is evaluated per step instead."""
+        n = self.st[LAST_CODE] + 1
+        conv1, conv2, k1, k2, k_df = self.conv1, self.conv2, self.k1, self.k2, self.k_df
+        d1 = array("i", range(n))  # no throw-away list (portable.zeros); freed when done
+        d2 = array("i", range(n))
+        code = 0
+        while code < n:
+            v = _clamp_um(conv1(code, k1))
+            if k_df is not None:
+                v = _clamp_um(v - poly(v, k_df))
+            d1[code] = v
+            d2[code] = _clamp_um(conv2(code, k2))
+            code += 1
+        lo1, lo2 = min(d1), min(d2)
+        if max(d1) - lo1 > 65535 or max(d2) - lo2 > 65535:
+            return
+        t1 = array("H", range(n))
+        t2 = array("H", range(n))
+        code = 0
+        while code < n:
+            t1[code] = d1[code] - lo1
+            t2[code] = d2[code] - lo2
+            code += 1
+        self.t1 = t1
+        self.t2 = t2
+        st = self.st
+        st[BASE1] = lo1
+        st[BASE2] = lo2
+        st[TABLES] = 1
 
     @property
     def d1(self):
@@ -136,29 +191,43 @@ class Measurement:
     @micropython.viper
     def update(self, raw1: int, raw2: int):
         s = ptr32(self.st)
-        d1 = int(self.conv1(raw1, self.k1))
-        if d1 > STROKE_CLAMP_UM:
-            d1 = STROKE_CLAMP_UM
-        elif d1 < -STROKE_CLAMP_UM:
-            d1 = -STROKE_CLAMP_UM
-        if s[HAS_DF]:
-            d1 = d1 - int(self.poly(d1, self.k_df))
+        if s[TABLES]:
+            last = s[LAST_CODE]
+            if raw1 > last:
+                raw1 = last
+            elif raw1 < 0:
+                raw1 = 0
+            if raw2 > last:
+                raw2 = last
+            elif raw2 < 0:
+                raw2 = 0
+            # ptr16 loads zero-extend on every port, and the entries are never negative
+            d1 = int(ptr16(self.t1)[raw1]) + (((s[BASE1] + _B29) & _M30) - _B29)
+            d2 = int(ptr16(self.t2)[raw2]) + (((s[BASE2] + _B29) & _M30) - _B29)
+        else:  # what _tabulate() stores, evaluated now
+            d1 = int(self.conv1(raw1, self.k1))
             if d1 > STROKE_CLAMP_UM:
                 d1 = STROKE_CLAMP_UM
             elif d1 < -STROKE_CLAMP_UM:
                 d1 = -STROKE_CLAMP_UM
-        d2 = int(self.conv2(raw2, self.k2))
-        if d2 > STROKE_CLAMP_UM:
-            d2 = STROKE_CLAMP_UM
-        elif d2 < -STROKE_CLAMP_UM:
-            d2 = -STROKE_CLAMP_UM
+            if s[HAS_DF]:
+                d1 = d1 - int(self.poly(d1, self.k_df))
+                if d1 > STROKE_CLAMP_UM:
+                    d1 = STROKE_CLAMP_UM
+                elif d1 < -STROKE_CLAMP_UM:
+                    d1 = -STROKE_CLAMP_UM
+            d2 = int(self.conv2(raw2, self.k2))
+            if d2 > STROKE_CLAMP_UM:
+                d2 = STROKE_CLAMP_UM
+            elif d2 < -STROKE_CLAMP_UM:
+                d2 = -STROKE_CLAMP_UM
         s[D1] = d1
         s[D2] = d2
         s[DEFL] = d1 - d2
         if not s[HAS_FORCE]:
             return
         f = int(self.poly(d1 - d2, self.k_force))
-        s[FORCE] = int(self._load_force(f)) if s[FRIC] else f
+        s[FORCE] = int(self._play(f)) if s[FRIC] else f
 
     @micropython.viper
     def _load_force(self, f: int) -> int:

@@ -55,6 +55,11 @@ def ptr32(buf):
     return memoryview(buf).cast("B").cast("i")
 
 
+def ptr16(buf):
+    """CPython stand-in for viper's ptr16 cast: the buffer's memory as unsigned 16-bit words."""
+    return memoryview(buf).cast("B").cast("H")
+
+
 def native(func):
     """CPython stand-in for @micropython.native (never reached on MicroPython, see above)."""
     return func

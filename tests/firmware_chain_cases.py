@@ -4,17 +4,19 @@ reference computed in CPython from the same calibration file.
 """
 
 
-def _measurement(cal_path):
+def _measurement(cal_path, tabulate=True):
     from firmware.calibration import load_calibration
     from firmware.measurement import Measurement
 
-    return Measurement(load_calibration(cal_path))
+    return Measurement(load_calibration(cal_path), tabulate)
 
 
-def case_chain(cal_path, bits, fixed):
+def case_chain(cal_path, bits, fixed, tabulate=True):
     """For each fixed code f: every code c of pot1 with pot2 at f, then every code of pot2 with
-    pot1 at f. Each record: D1 (pot1's conversion alone), D1* (after Df), D2, d, F."""
-    m = _measurement(cal_path)
+    pot1 at f. Each record: D1 (pot1's conversion alone), D1* (after Df), D2, d, F. With
+    `tabulate` D1* and D2 come from the boot-time per-code tables, else from the curves."""
+    m = _measurement(cal_path, tabulate)
+    assert (m.t1 is not None) == tabulate
     out = []
     for f in fixed:
         for sweep in (1, 2):

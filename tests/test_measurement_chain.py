@@ -59,9 +59,12 @@ def reference_chain(cal, r1, r2):
     return [d1, d1s, d2, d, poly(d, list(cal.force))]
 
 
-def test_every_adc_code_through_the_chain_matches_the_host_reference(cal_path):
+@pytest.mark.parametrize("tabulate", [True, False], ids=["tables", "curves"])
+def test_every_adc_code_through_the_chain_matches_the_host_reference(cal_path, tabulate):
+    """Both ways the step gets D1* and D2: the per-code tables made at boot, and the curves
+    evaluated each step (boards with ADCs wider than 12 bits)."""
     cal = load_calibration(cal_path)
-    got = on_micropython("case_chain(%r, %d, %r)" % (cal_path, BITS, FIXED))
+    got = on_micropython("case_chain(%r, %d, %r, %r)" % (cal_path, BITS, FIXED, tabulate))
     expected = []
     for f in FIXED:
         expected.append([reference_chain(cal, c, f) for c in range(1 << BITS)])
@@ -76,7 +79,7 @@ def test_every_adc_code_through_the_chain_matches_the_host_reference(cal_path):
     assert max(d1) - min(d1) > 50000 and max(d2) - min(d2) > 50000
     assert len({row[4] for row in got[4]}) > 100
     # the in-process firmware (CPython) agrees too
-    assert firmware_chain_cases.case_chain(cal_path, BITS, FIXED[2:3]) == got[4:6]
+    assert firmware_chain_cases.case_chain(cal_path, BITS, FIXED[2:3], tabulate) == got[4:6]
 
 
 def test_df_and_force_polynomials_at_every_integer_input(cal_path):
