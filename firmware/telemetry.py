@@ -66,6 +66,7 @@ class Ring:
     @head.setter
     def head(self, v):
         self.st[HEAD] = v
+        self.st[SLOT] = v % self.n
 
     @property
     def tail(self):
