@@ -50,6 +50,11 @@ GUEST = r'''
 import gc, io, json, micropython, time
 from array import array
 
+gc.collect()
+ALLOC0 = gc.mem_alloc()  # before any firmware module is imported
+import firmware.board_main, firmware.app, firmware.link, firmware.calibration  # noqa: E401  (what a board imports at boot)
+gc.collect()
+IMPORTS = gc.mem_alloc() - ALLOC0
 CODES = %(codes)r
 CALS = %(cals)r
 STEPS = %(steps)d
@@ -141,11 +146,15 @@ def locked_steps(step, n):
 
 def measure(label, cal_path):
     from firmware.app import App
+    from firmware.link import Link
 
     gc.collect()
+    alloc = gc.mem_alloc()
     app = App("/rom/board.json", cal_path, machine=Machine())
+    link = Link(app)  # what board_main.run builds too: its frames count against the heap
     c = app.ctrl
     gc.collect()
+    booted = gc.mem_alloc() - alloc  # the App, the link and the calibration with its tables
     free = gc.mem_free()
     lo, hi = 0, free
     while lo < hi:  # the largest block the heap can still give
@@ -157,7 +166,8 @@ def measure(label, cal_path):
         except MemoryError:
             hi = mid - 1
         gc.collect()
-    out = {"label": label, "pots": None, "mem_free": free, "largest_free_block": lo, "modes": {}}
+    out = {"label": label, "pots": None, "imports": IMPORTS, "booted": booted, "bench_free": free,
+           "largest_free_block": lo, "modes": {}}
     m = c.meas
     if m is not None:
         out["pots"] = [app.calibration.pot1[0], app.calibration.pot2[0]]
@@ -199,7 +209,7 @@ def measure(label, cal_path):
         out["modes"][mode] = {"step": worst, "pieces": pieces}
     out["status"] = {k: app.status()[k] for k in ("step_us_max", "overruns", "faults")}
     app.shutdown()
-    del app, c, m
+    del app, c, m, link
     gc.collect()
     return out
 
@@ -291,6 +301,21 @@ def stage(cpu, extra_calibration, tmp):
     return board, rom, cals
 
 
+def bare_heap(cpu):
+    """(heap total, bytes a bare interpreter has allocated when a script starts) on the chip."""
+    with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
+        f.write("import gc\ngc.collect()\nprint('HEAP', gc.mem_free() + gc.mem_alloc(), gc.mem_alloc())\n")
+    try:
+        proc = subprocess.run([sys.executable, str(RUN_ON_MCU), "--cpu", cpu, f.name], capture_output=True, text=True, timeout=120)
+    finally:
+        os.unlink(f.name)
+    for line in proc.stdout.splitlines():
+        if line.startswith("HEAP "):
+            total, alloc = line.split()[1:]
+            return int(total), int(alloc)
+    fail("no heap figures from the %s guest: %s" % (cpu, proc.stdout[-500:] + proc.stderr[-500:]))
+
+
 def run_guest(cpu, rom, board, cals, steps):
     script = GUEST % {"codes": sim_codes(board), "cals": cals, "steps": steps, "modes": MODES}
     with tempfile.NamedTemporaryFile("w", suffix=".py", delete=False) as f:
@@ -313,7 +338,7 @@ def us(insns, cpu):
     return insns * lo / mhz, insns * hi / mhz
 
 
-def report(cpu, results):
+def report(cpu, results, heap):
     _, board_name, chip, mhz, (clo, chi) = CPUS[cpu]
     lines = ["### %s (%s board file), CPI %.1f-%.1f at %.0f MHz assumed" % (chip, board_name, clo, chi, mhz), ""]
     lines.append("| pots | mode | instructions / step | us / step (est.) | sampler | pot1 | pot2 | Df | force | PI | safety | motor | telemetry |")
@@ -326,10 +351,18 @@ def report(cpu, results):
             lines.append("| %s | %s | %.0f | %.0f-%.0f | %s |" % (
                 r["label"], mode, m["step"], lo, hi, " | ".join("-" if v in (None, 0) else "%.0f" % v for v in cells)))
     lines.append("")
-    lines.append("| calibration | free heap after boot | largest free block |")
-    lines.append("| --- | ---: | ---: |")
+    total, bare = heap
+    lines.append("Heap %.0f KiB; a bare interpreter holds %.1f KiB. Firmware: imports (firmware.app, link,"
+                 " calibration as .mpy) + boot objects (App, Link, calibration, tables). Free after boot ="
+                 " heap - bare - imports - boot objects. The largest free block is measured with the"
+                 " bench's own script also in the heap, so a board has at least that." % (total / 1024, bare / 1024))
+    lines.append("")
+    lines.append("| calibration | imports | boot objects | free heap after boot | largest free block (at least) |")
+    lines.append("| --- | ---: | ---: | ---: | ---: |")
     for r in results:
-        lines.append("| %s | %.1f KiB | %.1f KiB |" % (r["label"], r["mem_free"] / 1024, r["largest_free_block"] / 1024))
+        r["mem_free"] = total - bare - r["imports"] - r["booted"]
+        lines.append("| %s | %.1f KiB | %.1f KiB | %.1f KiB | %.1f KiB |" % (
+            r["label"], r["imports"] / 1024, r["booted"] / 1024, r["mem_free"] / 1024, r["largest_free_block"] / 1024))
     return "\n".join(lines)
 
 
@@ -353,8 +386,9 @@ def main(argv=None):
             board, rom, cals = stage(cpu, a.calibration, Path(tmp))
             print("%s: running on the emulated chip (a few minutes)..." % cpu, file=sys.stderr)
             results = run_guest(cpu, rom, board, cals, a.steps)
-            everything[cpu] = results
-            print(report(cpu, results))
+            heap = bare_heap(cpu)
+            print(report(cpu, results, heap))
+            everything[cpu] = {"heap_total": heap[0], "bare_alloc": heap[1], "results": results}
             print()
     if a.json:
         Path(a.json).write_text(json.dumps(everything, indent=1))

@@ -116,36 +116,39 @@ class Measurement:
         """D1* and D2 for every ADC code, made once at boot by the same integer functions the
         step would call (so the same bits as the host's), then looked up by the step: two
         loads instead of two curve evaluations and the Df polynomial (~5000 Cortex-M0
-        instructions a step). Each table holds D - min(D) as uint16 (2**adc_bits x 2 bytes:
-        8 KiB at 12 bits); a curve spanning more than 65535 um is evaluated per step instead."""
+        instructions a step). Each table holds D - base as uint16 (2**adc_bits x 2 bytes: 8 KiB
+        at 12 bits), base centring the 65536 um window on the curve's two ends, in one pass
+        with no scratch arrays (a board's heap is small). A curve that leaves its window is
+        evaluated per step instead."""
         n = self.st[LAST_CODE] + 1
-        conv1, conv2, k1, k2, k_df = self.conv1, self.conv2, self.k1, self.k2, self.k_df
-        d1 = array("i", range(n))  # no throw-away list (portable.zeros); freed when done
-        d2 = array("i", range(n))
-        code = 0
-        while code < n:
-            v = _clamp_um(conv1(code, k1))
-            if k_df is not None:
-                v = _clamp_um(v - poly(v, k_df))
-            d1[code] = v
-            d2[code] = _clamp_um(conv2(code, k2))
-            code += 1
-        lo1, lo2 = min(d1), min(d2)
-        if max(d1) - lo1 > 65535 or max(d2) - lo2 > 65535:
-            return
-        t1 = array("H", range(n))
+        t1 = array("H", range(n))  # no throw-away list (portable.zeros)
         t2 = array("H", range(n))
+        base1 = (self._d1_at(0) + self._d1_at(n - 1)) // 2 - 32768
+        base2 = (self._d2_at(0) + self._d2_at(n - 1)) // 2 - 32768
         code = 0
         while code < n:
-            t1[code] = d1[code] - lo1
-            t2[code] = d2[code] - lo2
+            v1 = self._d1_at(code) - base1
+            v2 = self._d2_at(code) - base2
+            if not (0 <= v1 <= 65535 and 0 <= v2 <= 65535):
+                return
+            t1[code] = v1
+            t2[code] = v2
             code += 1
         self.t1 = t1
         self.t2 = t2
         st = self.st
-        st[BASE1] = lo1
-        st[BASE2] = lo2
+        st[BASE1] = base1
+        st[BASE2] = base2
         st[TABLES] = 1
+
+    def _d1_at(self, code):
+        d1 = _clamp_um(self.conv1(code, self.k1))
+        if self.k_df is not None:
+            d1 = _clamp_um(d1 - poly(d1, self.k_df))
+        return d1
+
+    def _d2_at(self, code):
+        return _clamp_um(self.conv2(code, self.k2))
 
     @property
     def d1(self):
