@@ -72,7 +72,7 @@ class FloatStep:
             r = r * x + c
         return r
 
-    def step(self):
+    def step(self, _timer=None):
         s = self.s
         s.sample()
         c = self.c
@@ -127,7 +127,7 @@ class FloatStep:
 def _loop(f, n):
     i = 0
     while i < n:
-        f()
+        f(None)
         i += 1
 
 
