@@ -10,7 +10,7 @@ def get_machine(board, machine=None):
     if machine is not None:
         return machine
     if board.get("simulated"):
-        from boards.sim import machine as sim  # E's simulated board
+        from boards.sim import machine as sim  # the simulated board
 
         sim.configure(board, board.get("seed"))
         return sim
