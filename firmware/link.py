@@ -13,12 +13,12 @@ KeyboardInterrupt (Ctrl-C from mpremote) is not caught, so it stops the App like
 
 import json
 import sys
-from array import array
 
 import binascii
 import select
 
 from firmware import protocol as P
+from firmware.portable import zeros
 
 _MAX_LINE = P.MAX_LINE
 _BATCH = P.TELEMETRY_BATCH
@@ -51,7 +51,7 @@ class Link:
         self.telemetry_seq = 0
         self.lines = 0
         self.errors = 0
-        frame = array("I", [0] * P.telemetry_frame_words(_BATCH))
+        frame = zeros(P.telemetry_frame_words(_BATCH), "I")
         view = memoryview(frame)
         self._frame = frame
         # One view per record slot (the ring copies into it) and, per record count, the span

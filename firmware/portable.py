@@ -34,10 +34,10 @@ except ImportError:  # CPython
         return (_time.perf_counter_ns() // 1000) & 0x3FFFFFFF
 
 
-def zeros(n):
-    """array('i') of n zeros, built without a throw-away list as large as itself (on a board's
-    small heap such a list costs as much again as the array and fragments what is left)."""
-    a = array("i", range(n))
+def zeros(n, typecode="i"):
+    """array(typecode) of n zeros, built without a throw-away list as large as itself (on a
+    board's small heap such a list costs as much again as the array and fragments the rest)."""
+    a = array(typecode, range(n))
     i = 0
     while i < n:
         a[i] = 0
