@@ -8,6 +8,8 @@ reset is readable afterwards. Without a usable calibration, raw readings and ope
 work; closed-loop modes are refused with the reason, and status() shows it.
 """
 
+from array import array
+
 from firmware import hal
 from firmware.board_config import load_board
 from firmware.controller import (
@@ -15,6 +17,8 @@ from firmware.controller import (
     IDLE,
     MODE_NAMES,
     OPEN_LOOP,
+    P_STROKE_MAX,
+    P_STROKE_MIN,
     PARAMS,
     POSITION,
     Controller,
@@ -69,6 +73,10 @@ def _load_calibration(path):
         return None, "calibration file %s not found" % path
     except (ValueError, KeyError, TypeError) as exc:  # corrupt content the loader did not catch
         return None, "calibration %s corrupt: %r" % (path, exc)
+    except MemoryError:  # e.g. a deeply nested or huge file: boot without it, motor off
+        return None, "calibration %s too large for this board's memory" % path
+    except Exception as exc:  # anything else (RecursionError, ...): the board must still boot
+        return None, "calibration %s unreadable: %r" % (path, exc)
 
 
 class App:
@@ -87,6 +95,10 @@ class App:
         if cal is not None:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
+        # What every parameter is at boot: a host that goes silent gets them back (watch_host)
+        self.boot_params = array("i", self.ctrl.p)
+        self._boot_silence = self.safety.silence_limit  # steps of silence that restore them
+        self.params_restored = None
         self._timer = None
         self.timer_kind = hal.timer_kind(self.board)  # what the board file asks; start() says what it got
         self._quit = False
@@ -133,6 +145,9 @@ class App:
             "step_us_max": self.ctrl.step_us_max,
             "overruns": self.ctrl.overruns,
             "period_us": self.ctrl.period_us,
+            "stroke_um": [self.ctrl.p[P_STROKE_MIN], self.ctrl.p[P_STROKE_MAX]],
+            "params_changed": self.params_changed(),
+            "params_restored": self.params_restored,
             "timer": self.timer_kind,
             "last_exit": self.last_exit,
         }
@@ -226,6 +241,31 @@ class App:
         self.ctrl.p[i] = value
         self.ctrl.apply_params()
 
+    def params_changed(self):
+        """Names of the parameters that differ from their boot values."""
+        p = self.ctrl.p
+        return [PARAMS[i][0] for i in range(len(PARAMS)) if p[i] != self.boot_params[i]]
+
+    def watch_host(self):
+        """Main loop, every pass: once the host has been silent for the boot watchdog time
+        (host_timeout_ms as the board booted, whatever it is set to now), every parameter goes
+        back to its boot value. A host killed mid-sweep must not leave the stroke limits open or
+        the watchdog off; the step's own watchdog has stopped any motion already."""
+        n = self._boot_silence
+        if n <= 0 or self.safety.silence < n:
+            return False
+        changed = self.params_changed()
+        if not changed:
+            return False
+        p = self.ctrl.p
+        i = 0
+        while i < len(p):
+            p[i] = self.boot_params[i]
+            i += 1
+        self.ctrl.apply_params()
+        self.params_restored = "host silent: %s back to boot values" % ", ".join(changed)
+        return True
+
     def set_stream(self, hz):
         hz = int(hz)
         loop_hz = self.board["loop_hz"]
@@ -269,6 +309,7 @@ class App:
             while not self._quit:
                 if link is not None:
                     link.poll()
+                self.watch_host()
                 if idle is not None:
                     idle()
         except BaseException as exc:  # KeyboardInterrupt and SystemExit too

@@ -232,7 +232,9 @@ class Controller:
             sf.rail_value = s[_S_RAIL_VALUE]
             sf.trip(_FAULT_RAIL_POT1 if s[_S_RAIL] == _RAIL_POT1 else _FAULT_RAIL_POT2)
         mode = c[MODE]
-        if mode != IDLE and self._tick():
+        # silence is counted in every mode (App.watch_host restores the parameters after it);
+        # it stops the motor only when there is motion to stop
+        if self._tick() and mode != IDLE:
             sf.trip(_FAULT_HOST_TIMEOUT)
         has_meas = c[HAS_MEAS]
         d1 = 0

@@ -37,11 +37,11 @@ FAULT_NAMES = (
 FAULTS = const(0)  # latched fault bits
 LAST = const(1)  # the most recent fault bit
 RAIL_VALUE = const(2)  # the code of a rail fault
-SILENCE = const(3)  # steps since the host was last heard, capped at SILENCE_CAP
+SILENCE = const(3)  # steps since the host was last heard, in every mode, capped at SILENCE_CAP
 SILENCE_LIMIT = const(4)  # steps; 0 = watchdog off
 WORDS = const(5)
-# With the watchdog off the silence count still stops here, so it never leaves 31 bits however
-# long the board runs (2**29 steps is 6 days at 1 kHz; the longest timeout is 600 000 steps).
+# The silence count stops here, so it never leaves 31 bits however long the board runs (2**29
+# steps is 6 days at 1 kHz; the longest timeout is 600 000 steps).
 SILENCE_CAP = const(536870912)
 
 
@@ -90,18 +90,14 @@ class Safety:
 
     @micropython.viper
     def tick(self) -> bool:
-        """Once per step while the motor may run: True when the host has been silent too long."""
+        """Once per step: True when the host has been silent for the watchdog time."""
         s = ptr32(self.st)
         n = s[SILENCE]
-        if n < SILENCE_CAP:
+        if n < SILENCE_CAP:  # bounded however long the host is gone
             n += 1
-        lim = s[SILENCE_LIMIT]
-        if lim and n >= lim:
-            n = lim  # stays bounded however long the host is gone
             s[SILENCE] = n
-            return True
-        s[SILENCE] = n
-        return False
+        lim = s[SILENCE_LIMIT]
+        return lim > 0 and n >= lim
 
     @micropython.viper
     def trip(self, bit: int):

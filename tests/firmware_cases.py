@@ -492,3 +492,159 @@ def case_pyboard_pwm_adapter():
     finally:
         del sys.modules["pyb"]
     return {"ok": True}
+
+
+def case_watchdog_in_every_motion_mode(path):
+    """host_timeout_ms of silence stops the motor in open loop, position and force alike (the
+    guided sweeps run in open loop); idle counts the silence but has nothing to stop."""
+    data = load(path)
+    out = {}
+    for mode, target in (("open_loop", 3000), ("position", None), ("force", 3000)):
+        app, _ = make_app(data)
+        app.set_param("host_timeout_ms", 50)  # 50 steps at 1 kHz
+        app.set_mode(mode)
+        app.set_target(app.ctrl.meas.d2 + 5000 if target is None else target)
+        _run_steps(app.step, 49)
+        assert app.status()["mode"] == mode, (mode, app.status())
+        app.step(None)
+        st = app.status()
+        assert st["mode"] == "idle" and st["faults"] == ["host_timeout"], (mode, st)
+        assert pwm_duties(app) == [0, 0], mode
+        out[mode] = st["faults"]
+    app, _ = make_app(data)
+    app.set_param("host_timeout_ms", 50)
+    _run_steps(app.step, 80)
+    assert app.status()["faults"] == [] and app.safety.silence == 80
+    return out
+
+
+def case_commands_count_as_hearing_the_host(path):
+    """Every command resets the watchdog: a host that only sends targets (or reads a parameter)
+    more often than host_timeout_ms keeps the motor running."""
+    data = load(path)
+    out = {}
+    for name in ("set_target", "get_param", "heartbeat", "set_mode"):
+        app, _ = make_app(data)
+        app.set_param("host_timeout_ms", 50)
+        app.set_mode("open_loop")
+        app.set_target(2000)
+        i = 0
+        while i < 10:
+            _run_steps(app.step, 40)
+            if name == "set_target":
+                app.set_target(2000)
+            elif name == "get_param":
+                app.get_param("slew")
+            elif name == "heartbeat":
+                app.heartbeat()
+            else:
+                app.set_mode("open_loop")
+                app.set_target(2000)
+            i += 1
+        st = app.status()
+        assert st["faults"] == [] and st["mode"] == "open_loop", (name, st)
+        out[name] = st["steps"]
+    return out
+
+
+def case_range_checks(path):
+    """Targets and parameters outside their ranges are refused with ValueError and change
+    nothing: position +-65535 um, open-loop duty +-10000, force +-200 N, every parameter's own
+    min..max from the table."""
+    from firmware.controller import PARAMS
+
+    data = load(path)
+    app, _ = make_app(data)
+    refused = []
+
+    def refuse(f, *a):
+        try:
+            f(*a)
+        except ValueError:
+            refused.append(1)
+            return
+        raise AssertionError("accepted %r" % (a,))
+
+    app.set_mode("position")
+    before = app.ctrl.target
+    refuse(app.set_target, 65536)
+    refuse(app.set_target, -65536)
+    assert app.ctrl.target == before
+    app.set_mode("open_loop")
+    refuse(app.set_target, 10001)
+    refuse(app.set_target, -10001)
+    app.set_mode("force")
+    refuse(app.set_target, 200001)
+    for name, default, lo, hi in PARAMS:
+        refuse(app.set_param, name, lo - 1)
+        refuse(app.set_param, name, hi + 1)
+        assert app.get_param(name) == default, name
+    return {"refused": len(refused)}
+
+
+def case_host_silence_restores_params(path):
+    """A host that opened the stroke limits and turned the watchdog off, then went silent, gets
+    every parameter back at its boot value after the boot watchdog time (App.watch_host, which
+    run() calls each pass); status shows the limits in force. A host heard in time keeps them."""
+    data = load(path)
+    app, _ = make_app(data)
+    boot = app.status()["stroke_um"]
+    app.set_param("stroke_min_um", -65535)
+    app.set_param("stroke_max_um", 65535)
+    app.set_param("host_timeout_ms", 0)
+    st = app.status()
+    assert st["stroke_um"] == [-65535, 65535] and "host_timeout_ms" in st["params_changed"], st
+    i = 0
+    while i < 1500:  # heard every 500 steps: nothing comes back
+        app.step(None)
+        assert not app.watch_host()
+        if i % 500 == 0:
+            app.heartbeat()
+        i += 1
+    assert app.status()["stroke_um"] == [-65535, 65535]
+    app.heartbeat()  # the host's last word
+    restored_at = None
+    i = 0
+    while i < 1200:  # silent: back after the boot timeout, 1000 steps at 1 kHz
+        app.step(None)
+        if app.watch_host():
+            restored_at = i + 1
+        i += 1
+    st = app.status()
+    assert restored_at == 1000, restored_at
+    assert st["stroke_um"] == boot and st["params_changed"] == [], st
+    assert app.get_param("host_timeout_ms") == 1000
+    assert "stroke_min_um" in st["params_restored"], st
+    # the same through run(), as a board's main loop runs it: a link that only lets time pass
+    app.set_param("stroke_max_um", 65535)
+
+    class SilentLink:
+        polls = 0
+
+        def poll(self):  # one main-loop pass = 10 steps of the timer
+            _run_steps(app.step, 10)
+            SilentLink.polls += 1
+            if SilentLink.polls == 150:
+                app.quit()
+
+    app.heartbeat()
+    app.run(SilentLink())
+    assert app.status()["stroke_um"] == boot, app.status()
+    return {"restored_at": restored_at, "stroke_um": st["stroke_um"]}
+
+
+def case_boot_survives_any_calibration(path, bad_paths):
+    """Every file in bad_paths as the calibration: the App boots, motor off, no calibration,
+    and says why; open loop still works."""
+    from firmware.app import App
+
+    whys = []
+    for bad in bad_paths:
+        app = App("boards/sim.json", bad, machine=ReplayMachine({"pot1": [32000], "pot2": [32000], "reference": [32000], "gauge": [32000]}))
+        st = app.status()
+        assert st["calibration_crc"] is None and st["calibration_error"], st
+        assert pwm_duties(app) == [0, 0]
+        app.set_mode("open_loop")
+        app.set_target(1000)
+        whys.append(st["calibration_error"].split(":")[0])
+    return {"why": whys}

@@ -140,3 +140,64 @@ def test_board_files_load_and_broken_ones_are_explained():
 def test_pyboard_pwm_adapter():
     here, there = both("case_pyboard_pwm_adapter()")
     assert here == there
+
+
+def test_watchdog_stops_every_motion_mode(data_path):
+    here, there = both("case_watchdog_in_every_motion_mode(PATH)", data_path)
+    assert here == there
+
+
+def test_every_command_counts_as_hearing_the_host(data_path):
+    here, there = both("case_commands_count_as_hearing_the_host(PATH)", data_path)
+    assert here == there
+
+
+def test_targets_and_parameters_out_of_range_are_refused(data_path):
+    here, there = both("case_range_checks(PATH)", data_path)
+    assert here == there
+
+
+def test_a_silent_host_gets_the_boot_parameters_back(data_path):
+    here, there = both("case_host_silence_restores_params(PATH)", data_path)
+    assert here == there and here["restored_at"] == 1000
+
+
+def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
+    """Empty, truncated, not JSON, deeply nested (200 KB of '['), huge, binary: the App boots
+    with no calibration on both interpreters and says why (a board that cannot boot cannot be
+    repaired from the host)."""
+    import json as _json
+
+    good = _json.dumps({"format": "lsea-kit calibration", "schema": 1, "crc32": 0, "payload": "{}"})
+    files = {
+        "empty.json": b"",
+        "truncated.json": good[: len(good) // 2].encode(),
+        "text.json": b"hello",
+        "nested.json": b"[" * 200000 + b"]" * 200000,
+        "huge.json": b'{"format": "' + b"x" * 2000000 + b'"}',
+        "binary.json": bytes(range(256)) * 16,
+        "missing.json": None,
+    }
+    paths = []
+    for name, data in files.items():
+        p = tmp_path / name
+        if data is not None:
+            p.write_bytes(data)
+        paths.append(str(p))
+    here, there = both("case_boot_survives_any_calibration(None, %r)" % paths)
+    assert len(here["why"]) == len(there["why"]) == len(files)
+
+
+def test_board_main_puts_back_a_calibration_an_interrupted_install_left_aside(tmp_path):
+    """board_main.run recovers calibration.json from calibration.json.old before anything
+    else, even when the boot then fails (here: no board file)."""
+    (tmp_path / "calibration.json.old").write_text("{}")
+    src = (
+        "import os\nos.chdir(%r)\nfrom firmware.board_main import run\n"
+        "try:\n    run('no_board.json', 'calibration.json')\nexcept Exception:\n    print('boot failed')\n"
+        "print(sorted(os.listdir('.')))\n" % str(tmp_path)
+    )
+    from micropython_runner import run_micropython
+
+    out = run_micropython(src).stdout
+    assert "boot failed" in out and "['calibration.json']" in out, out
