@@ -56,7 +56,8 @@ TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
 # (TOKEN_MIN..TOKEN_MAX; format_command refuses anything else); integers are decimal. `int`
 # arguments must fit +-2**30 (the board's small-int range).
 COMMANDS = (
-    ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, timer, last_exit, protocol",
+    ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
+     "step_us_max, overruns, period_us, stroke_um, params_changed, params_restored, timer, last_exit, protocol",
      "identify the firmware and report its state (the handshake)"),
     ("stop", (), "null", "motor off, mode idle"),
     ("mode", ("name",), "null", "switch mode: idle, open_loop, position or force"),
