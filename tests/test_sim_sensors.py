@@ -190,3 +190,66 @@ emit({'rows': out})
             assert code == pytest.approx(want, abs=0.3)
         drifts.append(r1 - t1)
     assert len(set(drifts)) == 3  # the seed picks the drift rate
+
+
+def _table_pot_params(curve_table):
+    pot = dict(json.loads((REPO / "boards" / "sim.json").read_text())["actuator"]["pots"]["pot1"])
+    pot.pop("curve")
+    pot.pop("knee_halfwidth")
+    pot["curve_table"] = curve_table
+    return pot
+
+
+def test_a_pot_can_take_its_curve_from_a_table():
+    """A listed table is interpolated linearly (same floats on both interpreters), a noisy one
+    is made non-decreasing (isotonic), and a table that cannot be a pot is refused."""
+    from boards.sim.potentiometer import Potentiometer, table_curve
+
+    pot = Potentiometer(_table_pot_params([[0, 0.1], [0.5, 0.4], [1, 0.9]]))
+    for u, g in ((0.0, 0.1), (0.25, 0.25), (0.5, 0.4), (0.75, 0.65), (1.0, 0.9), (-1, 0.1), (2, 0.9)):
+        assert abs(pot.curve(u) - g) < 1e-12, (u, pot.curve(u), g)
+    u, g = table_curve([[0, 0.1], [0.2, 0.3], [0.4, 0.2], [0.6, 0.5], [1, 0.9]])
+    assert g == [0.1, 0.25, 0.25, 0.5, 0.9] and u[0] == 0 and u[-1] == 1
+    for bad in ([[0, 0.1]], [[0, 0.1], [0, 0.2]], [[0, -0.1], [1, 0.5]], [[0, 0.1], [1, 1.5]]):
+        with pytest.raises(ValueError):
+            table_curve(bad)
+    code = (
+        "from boards.sim.potentiometer import Potentiometer\n"
+        "p = Potentiometer(%r)\n"
+        "emit({'g': [p.fraction(x / 4.0) for x in range(-20, 260)]})\n" % _table_pot_params([[0, 0.1], [0.3, 0.2], [0.8, 0.85], [1, 0.9]])
+    )
+    got = run_both(code)
+    assert len(got["g"]) == 280
+
+
+def test_a_real_measured_adc_curve_as_the_pot_is_calibrated_to_its_noise_floor(realdata_dir):
+    """Pot 1 simulated with the ESP32 ADC transfer curve measured by rupayan555 (knees at both
+    ends, 8 % of span from a straight line): a noisy sweep of it, fitted with --model auto as
+    `host calibrate` does, gives positions within a tenth of a millimetre of the wiper's, where a
+    straight line through the same sweep is off by millimetres."""
+    import numpy as np
+
+    from boards.sim.actuator import Actuator
+    from host.model_select import select_model
+    from host.noise_floor import estimate_noise
+
+    params = json.loads((REPO / "boards" / "sim.json").read_text())["actuator"]
+    params["pots"]["pot1"] = _table_pot_params(
+        {"csv": str(realdata_dir / "esp32_adc_rupayan555.csv"), "x": "reference", "y": "raw", "y_full_scale": 4095})
+    world = Actuator(dict(params, adc_bits=12), 5)
+    xs = np.linspace(0.0, 60.0, 1201)
+    codes, travel = [], []
+    for x in xs:
+        world.place(x)
+        codes.append(world.adc_code("pot1"))
+        travel.append(world.pots[0].wiper_mm(x))
+    order = np.argsort(codes, kind="stable")
+    c = np.asarray(codes, float)[order]
+    t = np.asarray(travel)[order]
+    keep = (c > 0) & (c < 4095)  # the ADC's clipped ends carry no position
+    c, t = c[keep], t[keep]
+    line = np.polyval(np.polyfit(c, t, 1), c) - t
+    chosen = select_model(c, t, noise=estimate_noise(c, t)).result
+    err = chosen(c) - t
+    assert np.max(np.abs(line)) > 2.0, np.max(np.abs(line))
+    assert np.sqrt(np.mean(err**2)) < 0.1 and chosen.monotone, (chosen.model, np.sqrt(np.mean(err**2)))
