@@ -1,6 +1,7 @@
 """The pieces of the experiments and guided fits that need no board: the nominal 2-point pot
 calibration, the Df order choice by cross-validation, the force hysteresis measure."""
 
+import pytest
 import numpy as np
 
 from firmware.calibration import convert, pot_constants
@@ -98,3 +99,53 @@ def test_report_renders_every_section_and_judges_each_target(tmp_path):
     assert "| 30 | 28.000 | 2.000 | 29.950 | 0.050 |" in text and "0.050 (not settled)" in text  # 59 mm unsettled
     worse = report.write(tmp_path, _results(0.5, 0.05, 3.0), opts).read_text()
     assert "<= 0.1 mm: **NOT met**" in worse and "<= 2 %: **NOT met**" in worse
+
+
+@pytest.mark.parametrize("failure", [TimeoutError("no reply to stream"), KeyboardInterrupt()], ids=["board-gone", "ctrl-c"])
+def test_a_stopped_experiment_keeps_what_it_measured(tmp_path, monkeypatch, capsys, failure):
+    """The board stops answering (or Ctrl-C) in the middle of the control experiments: the
+    sections measured before are in results.json, report.md says where and why it stopped, and
+    the command ends with one error line and status 1, no traceback."""
+    import contextlib
+    import json
+
+    import host.experiments.paper as paper
+    import host.guided.session as session_mod
+    from host import cli
+
+    def fake_run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
+        results.update({"board": "sim", "simulated": True, "port": "sim"})
+        progress = paper.Progress(out_dir, results)
+        progress.start("calibration")
+        results["pot_models"] = {"pot1": "pwl order 12", "pot2": "pwl order 11"}
+        results["fig5"] = {"order": 7}
+        progress.done()
+        progress.start("Fig. 7 and Fig. 8")
+        results["fig7"] = {"before": [{"target": 1.0}]}
+        raise failure
+
+    class FakeSession:
+        def __init__(self, *a, **k):
+            self.board = {"name": "sim", "adc_bits": 12, "simulated": True}
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(paper, "run_paper", fake_run_paper)
+    monkeypatch.setattr(session_mod, "Session", FakeSession)
+    monkeypatch.setattr("host.commands.experiment.make_rig", lambda *a: None, raising=False)
+    monkeypatch.setattr("host.guided.rig.reference_scale", lambda *a: 1.0)
+    out = tmp_path / "run"
+    code = cli.main(["experiment", "paper", "--port", "sim", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1 and err[0].startswith("error: the experiment stopped during Fig. 7 and Fig. 8: "), err
+    assert "Traceback" not in "\n".join(err)
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["completed"] == ["calibration"] and saved["fig5"] == {"order": 7}
+    assert saved["stopped"]["phase"] == "Fig. 7 and Fig. 8"
+    report = (out / "report.md").read_text()
+    assert "stopped during **Fig. 7 and Fig. 8**" in report and "pwl order 12" in report

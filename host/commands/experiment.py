@@ -1,5 +1,6 @@
 """`host experiment paper`: the paper's experiments on a board or `sim`, as a Markdown report."""
 
+import sys
 from pathlib import Path
 
 from host.commands.calibrate import add_gauge_arguments, add_method_arguments, make_rig, method_options
@@ -28,7 +29,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from host.experiments.paper import run_paper
+    from host.experiments.paper import run_paper, write_stopped
     from host.guided.flow import Options
     from host.guided.prompts import Prompter
     from host.guided.rig import reference_scale
@@ -41,9 +42,20 @@ def run(args):
         raise UserError("cannot create %s: %s" % (out_dir, exc.strerror)) from None
     prompter = Prompter(yes=args.yes or args.port == "sim")
     opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), **method_options(args))
-    with Session(args.port, args.board, None, say=prompter.say) as session:
-        opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
-        rig = make_rig(args, prompter, session)
-        path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say)
+    results = {}
+    try:
+        with Session(args.port, args.board, None, say=prompter.say) as session:
+            opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
+            rig = make_rig(args, prompter, session)
+            path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say, results=results)
+    except (Exception, KeyboardInterrupt) as exc:
+        if not results:  # nothing measured yet (no board, a bad option): the usual one line
+            raise
+        why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        phase = results.get("phase", "start")
+        path = write_stopped(out_dir, results, phase, why)
+        print("error: the experiment stopped during %s: %s; what it measured is in %s and %s"
+              % (phase, why, out_dir / "results.json", path), file=sys.stderr)
+        return 1
     print("report: %s (%.0f s)" % (path, results["timings"]["total"]))
     return 0

@@ -62,11 +62,54 @@ def paper_method_offline(pots, assembly, force):
     return out
 
 
-def run_paper(session, rig, prompter, opts, out_dir, say=print):
+class Progress:
+    """Where a run is, and its results saved after every section: a run that stops (board gone,
+    timeout, Ctrl-C) keeps everything it measured in results.json."""
+
+    def __init__(self, out_dir, results):
+        self.path = Path(out_dir) / "results.json"
+        self.results = results
+        results.setdefault("completed", [])
+        self.phase = "start"
+
+    def start(self, phase):
+        self.phase = phase
+        self.results["phase"] = phase
+
+    def done(self):
+        self.results["completed"].append(self.phase)
+        save_results(self.path, self.results)
+
+
+def write_stopped(out_dir, results, phase, why):
+    """results.json and a report.md that say where and why the run stopped, with what it had
+    measured by then (the full report when every section it needs is there, else a summary)."""
+    results["stopped"] = {"phase": phase, "why": why}
+    save_results(Path(out_dir) / "results.json", results)
+    lines = ["# The paper's experiments: stopped", "",
+             "The run stopped during **%s**: %s" % (phase, why), "",
+             "Completed sections, saved in results.json: %s." % (", ".join(results.get("completed") or ["none"])), ""]
+    for key in ("pot_models", "fig5", "fig7", "fig8", "dead_zone", "table1"):
+        if key in results:
+            lines += ["## %s" % key, "", "```", json_text(results[key]), "```", ""]
+    path = Path(out_dir) / "report.md"
+    path.write_text("\n".join(lines))
+    return path
+
+
+def json_text(v):
+    import json
+
+    return json.dumps(v, indent=1, default=lambda x: x.tolist() if hasattr(x, "tolist") else str(x))[:4000]
+
+
+def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     out_dir = Path(out_dir)
     t0 = time.monotonic()
     timings = {}
-    results = {"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port}
+    results = {} if results is None else results
+    results.update({"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port})
+    progress = Progress(out_dir, results)
     block = (session.board.get("actuator") or {}).get("block") or {}
     results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
     results["preload_n"] = force_runs.PRELOAD_N
@@ -79,6 +122,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
         results["model"] += " (budget %d numbers)" % opts.budget
 
     say("== calibration (all steps) ==")
+    progress.start("calibration")
     accepted = run_steps(session, rig, prompter, STEPS, opts)
     missing = [s for s in STEPS if s not in accepted]
     if missing:
@@ -94,15 +138,18 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     for pot in ("pot1", "pot2"):
         _save_sweep(out_dir / ("sweep-%s.csv" % pot), pots[pot])
     calibrated = Path(opts.out)
+    results["fig5"] = accepted["assembly"].data["stats"]
+    progress.done()
 
     say("== Fig. 3a: objective vs order (pot 2 sweep of this run) ==")
+    progress.start("Fig. 3a")
     t = time.monotonic()
     p2 = pots["pot2"]
     rows, _ = model_compare.run(p2["raw"], p2["ref"], p2["noise"], out_dir, "pot 2", say)
     results["fig3a"] = rows
     timings["fig3a"] = time.monotonic() - t
+    progress.done()
 
-    results["fig5"] = accepted["assembly"].data["stats"]
     fd = accepted["force"].data
     results["force_fit"] = {"coeffs_f": list(fd["coeffs_f"]), "coeffs_d": list(fd["coeffs_d"]),
                             "hysteresis_n": fd["hysteresis_n"], "friction_n": fd["friction_n"],
@@ -114,6 +161,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     t = time.monotonic()
     bits = session.board["adc_bits"]
     say("== Fig. 7 before: nominal 2-point pot calibration ==")
+    progress.start("Fig. 7 and Fig. 8")
     nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
     session.flash(nominal)
     before = displacement.run_targets(session, rig, opts.ref_scale, label="before")
@@ -132,17 +180,23 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print):
     results["fig8"] = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]
     force_runs.plot_blocking(out_dir / "fig8.png", blocking[:2])
     timings["control"] = time.monotonic() - t
+    progress.done()
 
     t = time.monotonic()
     say("== force dead zone ==")
+    progress.start("force dead zone")
     dz_rows, dz = force_runs.dead_zone(session, rig, prompter, opts.anchor_mm)
     results["dead_zone"] = {"rows": dz_rows, "dead_zone_n": dz}
+    progress.done()
     say("== Table 1: force steps ==")
+    progress.start("Table 1")
     results["table1"] = [row for side in gauge_sides(opts.gauge_sides)
                          for row in force_runs.force_steps(session, rig, prompter, opts.anchor_mm, side)]
     timings["force"] = time.monotonic() - t
     timings["total"] = time.monotonic() - t0
     results["timings"] = timings
-    save_results(out_dir / "results.json", results)  # first: a report bug must not lose the run
+    results.pop("phase", None)
+    progress.done()  # results.json first: a report bug must not lose the run
+    progress.start("the report")
     path = report.write(out_dir, results, opts)
     return path, results
