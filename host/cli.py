@@ -39,6 +39,19 @@ def build_parser():
 
 
 def main(argv=None):
+    try:
+        code = _main(argv)
+        sys.stdout.flush()  # a closed pipe shows here, inside the handler, not at interpreter exit
+        return code
+    except BrokenPipeError:  # `host status | head -3`: the reader has what it wanted
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit's flush
+        except (OSError, ValueError):
+            pass
+        return 141
+
+
+def _main(argv):
     parser = build_parser()
     try:
         args = parser.parse_args(argv)

@@ -64,8 +64,8 @@ def run(args):
     from host.fit_plots import plot_fit
     from host.sweep import load_sweep
 
-    def say(msg):
-        print(msg, flush=True)
+    def say(msg):  # progress to stderr; the report's path (the result) to stdout
+        print(msg, file=sys.stderr, flush=True)
 
     out_dir = Path(args.out)
     try:

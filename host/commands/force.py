@@ -1,9 +1,8 @@
 """`host force --target N`: closed-loop force (spring deformation) control, then motor off."""
 
-import sys
-
 from host.board_client import BoardError, add_port_arguments, open_board, settle
 from host.errors import UserError
+from host.terminal import end_progress, progress_line
 
 
 def add_parser(subparsers):
@@ -38,8 +37,7 @@ def run(args):
     target = int(round(args.target * 1000))
 
     def progress(value, seconds):
-        sys.stderr.write("\r%6.2f s  F %8.3f N  (target %.3f N)" % (seconds, value / 1000, args.target))
-        sys.stderr.flush()
+        progress_line("%6.2f s  F %8.3f N  (target %.3f N)" % (seconds, value / 1000, args.target), every=1.0)
 
     last = {}
     with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
@@ -49,7 +47,7 @@ def run(args):
         finally:
             if not args.hold:
                 board.call("stop")
-        sys.stderr.write("\n")
+        end_progress()
         end = _stroke_end(board, last["d2_um"]) if last and not ok else None
     if value is None:
         raise UserError("no telemetry from the board during the force run")

@@ -5,6 +5,7 @@ import sys
 from host.board_client import add_port_arguments, open_board
 from host.errors import UserError
 from host.telemetry_log import CALIBRATED_FIELDS, record
+from host.terminal import end_progress, progress_line
 
 
 def add_parser(subparsers):
@@ -27,8 +28,7 @@ def run(args):
         raise UserError("--seconds must be > 0")
 
     def progress(s):
-        sys.stderr.write("\r%8d samples  %7.1f/s  lost frames %d  board drops %d " % (s.samples, s.rate, s.lost_frames, s.board_dropped))
-        sys.stderr.flush()
+        progress_line("%8d samples  %7.1f/s  lost frames %d  board drops %d" % (s.samples, s.rate, s.lost_frames, s.board_dropped), every=1.0)
 
     with open_board(args.port, args.board, args.calibration, args.load) as board:
         status = board.status_info or {}
@@ -39,6 +39,6 @@ def run(args):
             summary = record(board, args.out, args.seconds, args.rate, progress=progress)
         except KeyboardInterrupt:
             raise
-    sys.stderr.write("\n")
+    end_progress()
     print("%s: %s" % (args.out, summary.line()))
     return 0

@@ -1,9 +1,8 @@
 """`host move --to MM`: closed-loop position move of the output block, then motor off."""
 
-import sys
-
 from host.board_client import add_port_arguments, open_board, settle
 from host.errors import UserError
+from host.terminal import end_progress, progress_line
 
 
 def add_parser(subparsers):
@@ -23,8 +22,7 @@ def run(args):
     target = int(round(args.to * 1000))
 
     def progress(value, seconds):
-        sys.stderr.write("\r%6.2f s  D2 %8.3f mm  (target %.3f mm)" % (seconds, value / 1000, args.to))
-        sys.stderr.flush()
+        progress_line("%6.2f s  D2 %8.3f mm  (target %.3f mm)" % (seconds, value / 1000, args.to), every=1.0)
 
     with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
         try:
@@ -32,7 +30,7 @@ def run(args):
         finally:
             if not args.hold:
                 board.call("stop")
-        sys.stderr.write("\n")
+        end_progress()
         status = board.call("status")
     if value is None:
         raise UserError("no telemetry from the board during the move")

@@ -7,6 +7,8 @@ Answering "a" (or end of input, Ctrl-D) to any question aborts the whole calibra
 
 import sys
 
+from host.terminal import end_progress, progress_line  # noqa: F401  (the guided steps' progress)
+
 from host.errors import UserError
 
 
@@ -67,12 +69,4 @@ class Prompter:
                 self.say("not a number: %r (a = abort)" % answer)
 
 
-def progress_line(text):
-    """One refreshed status line on stderr while something long runs."""
-    sys.stderr.write("\r" + text[:110].ljust(110))
-    sys.stderr.flush()
 
-
-def end_progress():
-    sys.stderr.write("\n")
-    sys.stderr.flush()

@@ -1,0 +1,40 @@
+"""Terminal manners: progress on stderr, results on stdout.
+
+On a terminal a progress line is rewritten in place (`\\r`); written to a file or a pipe each
+update is a line of its own, at most one a `every` seconds, so a saved log stays readable.
+"""
+
+import sys
+import time
+
+_state = {"open": False, "last": 0.0}
+
+
+def _tty():
+    try:
+        return sys.stderr.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
+def progress_line(text, every=0.0):
+    """Show `text` as the current progress; `every` limits how often it is written off a terminal."""
+    if _tty():
+        sys.stderr.write("\r" + text[:110].ljust(110))
+        _state["open"] = True
+    else:
+        now = time.monotonic()
+        if every and now - _state["last"] < every:
+            return
+        _state["last"] = now
+        sys.stderr.write(text.rstrip() + "\n")
+    sys.stderr.flush()
+
+
+def end_progress():
+    """Finish the progress line (a newline on a terminal, nothing to do elsewhere)."""
+    if _state["open"]:
+        sys.stderr.write("\n")
+        sys.stderr.flush()
+        _state["open"] = False
+    _state["last"] = 0.0
