@@ -103,3 +103,35 @@ def test_log_and_plot_from_a_calibrated_board_warn_of_nothing(calibration, tmp_p
     assert len(data["t_us"]) > 20 and abs(data["d2_um"].mean() - 30000) < 1000  # the block boots at 30 mm
     assert cli.main(["plot", str(out)]) == 0
     assert capsys.readouterr().err == "" and out.with_suffix(".png").stat().st_size > 10000
+
+
+def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys):
+    """The reported sequence on one virtual board: move --hold, the host goes quiet and the
+    watchdog latches host_timeout, then `host stop` clears it (named), and the next move runs;
+    `host reset` names and clears any latched fault; `host status` shows every field (timing,
+    stroke limits) and --json gives the firmware's object."""
+    import time
+
+    from host.virtual_board import VirtualBoard
+
+    with VirtualBoard(calibration=calibration) as vb:
+        port = vb.path
+        assert cli.main(["move", "--port", port, "--to", "25", "--hold"]) == 0
+        time.sleep(1.5)
+        capsys.readouterr()
+        assert cli.main(["status", "--port", port, "--json"]) == 0
+        st = json.loads(capsys.readouterr().out)
+        assert st["faults"] == ["host_timeout"], st
+        for key in ("step_us_max", "overruns", "period_us", "stroke_um", "steps", "duty", "timer", "last_exit"):
+            assert key in st, key
+        assert cli.main(["stop", "--port", port]) == 0
+        out = capsys.readouterr().out
+        assert "cleared host_timeout" in out and out.rstrip().endswith("stopped"), out
+        assert cli.main(["move", "--port", port, "--to", "30"]) == 0, capsys.readouterr()
+        capsys.readouterr()
+        assert cli.main(["reset", "--port", port]) == 0
+        assert capsys.readouterr().out.strip() == "no latched faults"
+        assert cli.main(["status", "--port", port]) == 0
+        text = capsys.readouterr().out
+        assert "longest step (us)" in text and "overruns" in text and "soft stroke limits (um)" in text
+        assert "latched faults                 none" in text, text

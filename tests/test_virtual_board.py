@@ -270,7 +270,7 @@ def test_host_sim_cleans_up_on_sigterm_and_sighup_as_on_ctrl_c(stop_signal):
 def test_port_sim_runs_a_command_on_a_throwaway_board(capsys):
     assert cli.main(["status", "--port", "sim"]) == 0
     out = capsys.readouterr().out
-    assert "version            %s" % VERSION in out and "board              sim" in out
+    assert "%-30s %s" % ("firmware version", VERSION) in out and "%-30s sim" % "board" in out
 
 
 def test_log_ctrl_c_ends_with_a_complete_file_and_a_summary(vboard, tmp_path):

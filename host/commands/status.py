@@ -1,20 +1,75 @@
-"""`host status`: what the board runs and its state (firmware, board, calibration, mode, faults)."""
+"""`host status`: what the board runs and its state, every field the firmware reports."""
+
+import json
 
 from host.board_client import add_port_arguments, open_board
 
+# known fields first, in this order, with how to show them; any other field follows as it is
+LABELS = (
+    ("version", "firmware version"),
+    ("protocol", "protocol"),
+    ("board", "board"),
+    ("calibration_crc", "calibration CRC"),
+    ("calibration_error", "calibration problem"),
+    ("mode", "mode"),
+    ("faults", "latched faults"),
+    ("last_fault", "last fault"),
+    ("target", "target"),
+    ("duty", "duty (of 10000)"),
+    ("stroke_um", "soft stroke limits (um)"),
+    ("params_changed", "parameters changed since boot"),
+    ("params_restored", "parameters restored"),
+    ("steps", "steps since boot (mod 2**30)"),
+    ("period_us", "loop period (us)"),
+    ("step_us_max", "longest step (us)"),
+    ("overruns", "overruns"),
+    ("timer", "loop timer"),
+    ("last_exit", "last exit"),
+)
+
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("status", help="show the board's firmware, calibration, mode and faults")
+    p = subparsers.add_parser(
+        "status", help="show the board's firmware, calibration, mode, faults and loop timing",
+        description="Every field the firmware reports. 'longest step' and 'overruns' come from the board's "
+        "own clock: overruns count steps that started 1.5 periods late or ran a whole period (docs/firmware.md).")
     add_port_arguments(p)
+    p.add_argument("--json", action="store_true", help="print the firmware's status object as JSON")
     p.set_defaults(func=run)
+
+
+def describe(status):
+    """The status as 'label: value' lines for a person."""
+    lines = []
+    seen = set()
+    for key, label in LABELS:
+        if key not in status:
+            continue
+        seen.add(key)
+        value = status[key]
+        if key == "calibration_crc" and value is not None:
+            value = "%08x" % (value & 0xFFFFFFFF)
+        elif key == "faults":
+            value = ", ".join(value) if value else "none"
+            if status.get("faults"):
+                value += "  (host reset clears them)"
+        elif key == "stroke_um" and value:
+            value = "%s .. %s" % tuple(value)
+        elif key == "params_changed":
+            value = ", ".join(value) if value else "none"
+        elif key == "calibration_error" and value is None:
+            value = "none"
+        lines.append("%-30s %s" % (label, value))
+    for key in sorted(k for k in status if k not in seen):
+        lines.append("%-30s %s" % (key, status[key]))
+    return lines
 
 
 def run(args):
     with open_board(args.port, args.board, args.calibration, args.load) as board:
         status = board.status_info
-        for key in ("version", "board", "protocol", "calibration_crc", "calibration_error", "mode", "faults", "last_fault"):
-            value = status.get(key)
-            if key == "calibration_crc" and value is not None:
-                value = "%08x" % (value & 0xFFFFFFFF)
-            print("%-18s %s" % (key, value))
+    if args.json:
+        print(json.dumps(status, indent=1, sort_keys=True))
+    else:
+        print("\n".join(describe(status)))
     return 0

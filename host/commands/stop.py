@@ -1,10 +1,15 @@
-"""`host stop`: motor off, mode idle."""
+"""`host stop`: motor off, mode idle, and the board ready to move again."""
 
 from host.board_client import add_port_arguments, open_board
+from host.commands.reset import clear_faults
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("stop", help="stop the motor (mode idle)")
+    p = subparsers.add_parser(
+        "stop", help="stop the motor (mode idle) and clear a host-timeout fault, so the board can move again",
+        description="Motor off, mode idle. A host_timeout fault (the host went quiet, e.g. after "
+        "`host move --hold`) is cleared too; other faults (a lifted wiper, an exception) are named and "
+        "left for `host reset`.")
     add_port_arguments(p)
     p.set_defaults(func=run)
 
@@ -12,5 +17,11 @@ def add_parser(subparsers):
 def run(args):
     with open_board(args.port, args.board, args.calibration, args.load) as board:
         board.call("stop")
+        faults = board.call("status").get("faults") or []
+        if faults == ["host_timeout"]:
+            for line in clear_faults(board):
+                print(line)
+        elif faults:
+            print("latched: %s (host reset clears them once the cause is fixed)" % ", ".join(faults))
         print("stopped")
     return 0
