@@ -18,7 +18,6 @@ with no host attached does, so the firmware never blocks on a missing client.
 """
 
 import argparse
-import fcntl
 import json
 import math
 import os
@@ -27,11 +26,16 @@ import shutil
 import signal
 import subprocess
 import tempfile
-import termios
 import threading
 import time
-import tty
 from pathlib import Path
+
+try:  # POSIX only: a pseudo-terminal. Everything else in the host works without them.
+    import fcntl
+    import termios
+    import tty
+except ImportError:  # Windows
+    fcntl = termios = tty = None
 
 from host.errors import UserError
 
@@ -165,6 +169,9 @@ class VirtualBoard:
 
     # -- lifecycle ---------------------------------------------------------------------
     def start(self):
+        if fcntl is None:
+            raise UserError("the virtual board (--port sim, host sim) needs a pseudo-terminal: Linux or macOS, "
+                            "or WSL on Windows; real boards work here with --port COMn")
         if self.factory:
             install_factory(self.root, self.board_path, self.calibration)
         if self.load is not None:
