@@ -1,15 +1,21 @@
 """The guided calibration run: steps in order, show results, accept or abort, write, flash.
 
-Accepted sections are written to the calibration file one by one (host.calibration_file:
-update_section, atomic), then the file is flashed and the firmware must report its CRC before
-the next step starts. A fresh full run starts a new file (stale Df/force sections computed with
-older pot curves must not survive); single steps update the existing file.
+Nothing is written before a step is accepted. Before the first accepted step changes an
+existing calibration file, the file is copied aside with the date in its name
+(calibration.json.20261124-001500.bak), so no run, however it ends, loses a calibration. Then
+the accepted sections are written one by one (host.calibration_file: update_section, atomic),
+the file is flashed and the firmware must report its CRC before the next step starts. When a
+full run accepts new pot curves, the file's Df and force sections go with the old curves they
+were measured through (the backup keeps them); single steps update only their own sections.
+An interrupted or failed step leaves the file as the last accepted step left it.
 """
 
+import shutil
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from host.calibration_file import new_document, update_section, write_calibration
+from host.calibration_file import POT_SECTIONS, new_document, read_calibration, update_section, write_calibration
 from host.errors import UserError
 from host.guided.checks import Limits
 
@@ -48,11 +54,26 @@ def run_steps(session, rig, prompter, steps, opts):
 
     path = Path(opts.out)
     board_name = session.board["name"]
-    if tuple(steps) == STEPS:
-        write_calibration(path, new_document(board=board_name))
-        prompter.say("new calibration file %s" % path)
-    elif "pots" not in steps and not path.exists():
+    full = tuple(steps) == STEPS
+    if "pots" not in steps and not path.exists():
         raise UserError("%s does not exist: calibrate the pots first (host calibrate pots)" % path)
+    backed_up = [False]
+
+    def keep_previous():
+        if backed_up[0] or not path.exists():
+            return
+        backup = path.with_name("%s.%s.bak" % (path.name, time.strftime("%Y%m%d-%H%M%S")))
+        shutil.copy2(path, backup)
+        backed_up[0] = True
+        prompter.say("  kept the previous calibration as %s" % backup)
+
+    if path.exists():
+        try:
+            read_calibration(path)
+        except UserError:
+            if not full:  # a step updates the file's other sections: refuse before measuring
+                raise
+            keep_previous()  # a full run replaces it all; the unreadable file is kept aside
     accepted = {}
     for step in steps:
         if step == "pots":
@@ -76,8 +97,26 @@ def run_steps(session, rig, prompter, steps, opts):
         if not prompter.accept(question):
             prompter.say("  %s not accepted: the calibration file keeps its previous %s sections" % (step, step))
             continue
-        for name, section in outcome.sections.items():
-            update_section(path, name, section, board=board_name)
+        keep_previous()
+        if full and step == "pots":
+            # new pot curves: the Df and force sections were measured through the old ones
+            doc = new_document(board=board_name)
+            try:
+                doc["pots"] = dict(read_calibration(path).get("pots") or {}) if path.exists() else {}
+            except UserError:
+                pass
+            for name, section in outcome.sections.items():
+                if name in POT_SECTIONS:
+                    doc[name] = section
+                    if section.get("pot_id") is not None:
+                        doc["pots"] = dict(doc["pots"], **{name: section["pot_id"]})
+            write_calibration(path, doc)
+            for name, section in outcome.sections.items():
+                if name not in POT_SECTIONS:
+                    update_section(path, name, section, board=board_name)
+        else:
+            for name, section in outcome.sections.items():
+                update_section(path, name, section, board=board_name)
         prompter.say("  wrote %s to %s" % (", ".join(outcome.sections), path))
         if opts.flash:
             session.flash(path)
