@@ -38,6 +38,7 @@ POLY_SECTIONS = ("df", "force", "force_inverse")
 FRICTION_SECTION = "friction"
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
 LIMIT = 1 << 30
+MAX_BYTES = 65536  # the largest calibration file the board reads (ours are a few KB)
 PWL_VALUE_LIMIT = 1 << 29  # pwl_fixed sign-fixes knot values within [-2**29, 2**29)
 
 
@@ -177,9 +178,11 @@ def load_calibration(path):
     """The verified `Calibration` in file `path`, or CalibrationError saying what is wrong."""
     try:
         with open(path, "rb") as f:
-            raw = f.read()
+            raw = f.read(MAX_BYTES + 1)  # a huge file must not take the board's heap at boot
     except OSError:
         raise CalibrationError("no calibration file at %s" % path)
+    if len(raw) > MAX_BYTES:
+        raise CalibrationError("larger than %d bytes: not a calibration this firmware reads" % MAX_BYTES)
     try:
         text = raw.decode()
     except Exception:  # UnicodeError on CPython, ValueError/UnicodeError on MicroPython

@@ -176,13 +176,66 @@ def file_crc(path):
     return binascii.crc32(Path(path).read_bytes())
 
 
-def flash(port, board_name="sim", calibration=None, progress=print):
-    """Install firmware, board file and (optionally) calibration on the board at `port`."""
+def check_files(board_path, calibration=None):
+    """The firmware's own checks on every file flash would install, before the board is touched:
+    the board file (firmware.board_config), the calibration (firmware.calibration: size, CRC,
+    every section's layout) and that the calibration was made for this board and ADC width."""
+    from firmware.board_config import BoardError, load_board
+    from firmware.calibration import CalibrationError, load_calibration
+    from firmware.measurement import adc_bits_of
+
+    try:
+        board = load_board(str(board_path))
+    except BoardError as exc:
+        raise UserError("board file %s refused: %s" % (board_path, exc)) from None
+    if calibration is None:
+        return board
+    if not Path(calibration).is_file():
+        raise UserError("calibration file not found: %s" % calibration)
+    try:
+        cal = load_calibration(str(calibration))
+    except CalibrationError as exc:
+        raise UserError("calibration %s refused (the board keeps its own): %s" % (calibration, exc)) from None
+    except (RecursionError, MemoryError, ValueError, TypeError, KeyError) as exc:
+        raise UserError("calibration %s refused (the board keeps its own): unreadable (%s)" % (calibration, type(exc).__name__)) from None
+    if cal.board not in (None, board["name"]):
+        raise UserError("calibration %s was made for board %s, not %s" % (calibration, cal.board, board["name"]))
+    bits = {adc_bits_of(*cal.pot1), adc_bits_of(*cal.pot2)}
+    if bits != {board["adc_bits"]}:
+        raise UserError("calibration %s is for a %s-bit ADC, board %s has %d bits"
+                        % (calibration, "/".join(map(str, sorted(bits))), board["name"], board["adc_bits"]))
+    return board
+
+
+def identify(port):
+    """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
+    from host.board_client import BoardClient
+
+    try:
+        with BoardClient(port, check=False) as client:
+            return client.handshake().get("board")
+    except (UserError, OSError):
+        return None
+
+
+def flash(port, board_name="sim", calibration=None, progress=print, replace_board=False, ask_board=True):
+    """Install firmware, board file and (optionally) calibration on the board at `port`.
+
+    Every file is checked first (check_files) and, unless `replace_board`, the board's own
+    firmware is asked what it is: nothing is copied when anything is wrong."""
     if "/" in port and not Path(port).exists():
         raise UserError("serial port %s not found (is the board plugged in? try `host sim`)" % port)
+    running = identify(port) if ask_board else None
+    if board_name is None:
+        if running is None:
+            known = ", ".join(sorted(p.stem for p in (REPO / "boards").glob("*.json")))
+            raise UserError("no lsea-kit firmware on %s says which board it is: name it with --board (%s)" % (port, known))
+        board_name = running
     board_path, board = resolve_board(board_name)
-    if calibration is not None and not Path(calibration).is_file():
-        raise UserError("calibration file not found: %s" % calibration)
+    check_files(board_path, calibration)
+    if running is not None and running != board["name"] and not replace_board:
+        raise UserError("the board on %s runs lsea-kit for board %s, not %s: flash --board %s, or --replace-board to install %s"
+                        % (port, running, board["name"], running, board["name"]))
     with tempfile.TemporaryDirectory(prefix="lsea-flash-") as tmp:
         progress("compiling firmware for %s (mpy-cross -march=%s)" % (board["name"], board["mpy_march"]))
         files = build(board, tmp)

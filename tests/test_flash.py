@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from firmware.calibration import load_calibration
+from firmware.calibration import load_calibration, payload_crc
 from host import cli
 from host.board_client import BoardClient
 from host.calibration_file import new_document, write_calibration
@@ -246,3 +246,48 @@ def test_board_main_restores_a_calibration_left_aside_by_an_interrupted_fat_swap
         "print(open('calibration.json').read(), open('other.json').read(), sorted(os.listdir()))\n" % str(tmp_path)
     )
     assert proc.stdout.split() == ["OLD", "LIVE", "['calibration.json',", "'other.json',", "'other.json.old']"]
+
+
+def _bad_calibrations(d, good):
+    """Files flash must refuse: each broken the way a person or a disk breaks them."""
+    text = Path(good).read_text()
+    env = json.loads(text)
+    body = json.loads(env["payload"])
+    out = {
+        "empty": "",
+        "truncated": text[: len(text) // 2],
+        "bad CRC": json.dumps(dict(env, crc32=env["crc32"] ^ 1)),
+        "deeply nested": "[" * 100000 + "]" * 100000,
+    }
+    seg = dict(body, pot1={"kind": "pwl", "fixed": [2, 4, 0, 65536, 0, 60000]})  # one 60 mm segment: dx*dy > 2**30
+    payload = json.dumps(seg, sort_keys=True, separators=(",", ":"))
+    out["overflowing segment"] = json.dumps(dict(env, payload=payload, crc32=payload_crc(payload)))
+    other = dict(body, board="pico")
+    payload = json.dumps(other, sort_keys=True, separators=(",", ":"))
+    out["another board"] = json.dumps(dict(env, payload=payload, crc32=payload_crc(payload)))
+    paths = {}
+    for name, content in out.items():
+        p = d / (name.replace(" ", "_") + ".json")
+        p.write_text(content)
+        paths[name] = p
+    return paths
+
+
+def test_flash_refuses_bad_files_and_another_board_before_touching_the_board(calibrations, tmp_path, capsys):
+    """Each bad calibration, and --board pico onto the sim board: one error line, exit 2, and the
+    board keeps the calibration it had (same CRC, same file bytes)."""
+    from host import cli
+
+    good, crc = calibrations["a"]
+    with VirtualBoard(calibration=str(good)) as board:
+        installed = (board.root / "calibration.json").read_bytes()
+        for name, path in _bad_calibrations(tmp_path, good).items():
+            code = cli.main(["flash", "--port", board.path, "--calibration", str(path)])
+            err = capsys.readouterr().err.strip().splitlines()
+            assert code == 2 and len(err) == 1 and err[0].startswith("error: "), (name, err)
+            assert (board.root / "calibration.json").read_bytes() == installed, name
+        code = cli.main(["flash", "--port", board.path, "--board", "pico"])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and "runs lsea-kit for board sim, not pico" in err[-1], err
+        with BoardClient(board.path) as client:
+            assert client.status_info["calibration_crc"] == crc

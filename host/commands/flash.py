@@ -11,7 +11,10 @@ def add_parser(subparsers):
                               "board file and calibration through mpremote, swap it in with atomic renames, verify CRCs, "
                               "reset and check the firmware answers. Interrupting it leaves the previous install usable.")
     p.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyACM0), or 'sim' for a throwaway virtual board")
-    p.add_argument("--board", default="sim", help="board name in boards/ or a board file path (default sim)")
+    p.add_argument("--board", default=None,
+                   help="board name in boards/ or a board file path (default: what the board's firmware reports; sim for --port sim)")
+    p.add_argument("--replace-board", action="store_true",
+                   help="install --board although the firmware on the board reports another board")
     p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
     p.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
                    help="for --port sim: " + LOAD_HELP)
@@ -26,13 +29,13 @@ def run(args):
         from host.flashing import resolve_board
         from host.virtual_board import VirtualBoard
 
-        board_path, _ = resolve_board(args.board)
+        board_path, _ = resolve_board(args.board or "sim")
         with VirtualBoard(board=board_path, factory=False, load=args.load) as vb:
-            status = flash(vb.path, args.board, args.calibration, progress=progress)
+            status = flash(vb.path, args.board or "sim", args.calibration, progress=progress, ask_board=False)
     elif args.load is not None:
         raise UserError("--load only applies to --port sim (on a bench, hook the load by hand)")
     else:
-        status = flash(args.port, args.board, args.calibration, progress=progress)
+        status = flash(args.port, args.board, args.calibration, progress=progress, replace_board=args.replace_board)
     if status.get("version") is None:
         raise UserError("firmware did not report a version")
     print("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],

@@ -75,7 +75,8 @@ class Session:
         crc_file = file_crc32(calibration)
         self.client.close()
         self.client = None
-        status = flash(self.path, str(self.board_path), str(calibration), progress=lambda m: self.say("  flash: " + m))
+        status = flash(self.path, str(self.board_path), str(calibration), progress=lambda m: self.say("  flash: " + m),
+                       ask_board=False)  # this session identified the board when it opened
         self.client = BoardClient(self.path)
         got = self.client.status_info.get("calibration_crc")
         if got != crc_file:
