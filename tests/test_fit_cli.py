@@ -192,3 +192,34 @@ def test_model_without_its_module_is_a_clear_error(monkeypatch, capsys):
     assert main(["fit", EXAMPLE, "--model", "pwl"]) == 2
     err = capsys.readouterr().err
     assert "not available" in err and "host.not_written_yet" in err and err.count("\n") == 1
+
+
+def _sweep_file(path, raw, ref):
+    with open(path, "w") as f:
+        f.write("raw,reference\n")
+        for r, y in zip(raw, ref):
+            f.write("%d,%r\n" % (int(r), float(y)))
+    return str(path)
+
+
+def test_fit_out_refuses_what_cannot_be_a_calibration(tmp_path, capsys):
+    """A reference that is not a function of the reading, and numbers near 1e300: one error line,
+    status 2, no file; --force writes the first (it can be exported), never an inf or NaN."""
+    import numpy as np
+
+    from host import cli
+
+    rng = np.random.default_rng(1)
+    raw = np.sort(rng.integers(100, 3900, 1500))
+    scattered = _sweep_file(tmp_path / "scattered.csv", raw, rng.uniform(0, 60, raw.size))
+    huge = _sweep_file(tmp_path / "huge.csv", range(100, 3900, 3), [1e300 * r / 4000 for r in range(100, 3900, 3)])
+    for sweep, words in ((scattered, "of the reference's span"), (huge, "not finite")):
+        out = tmp_path / "cal.json"
+        code = cli.main(["fit", sweep, "--out", str(out)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and err[-1].startswith("error: not writing") and words in err[-1], err
+        assert not out.exists()
+    assert cli.main(["fit", scattered, "--out", str(tmp_path / "forced.json"), "--force"]) == 0
+    code = cli.main(["fit", huge, "--out", str(tmp_path / "forced-huge.json"), "--force"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1].startswith("error: ") and not (tmp_path / "forced-huge.json").exists(), err

@@ -3,6 +3,7 @@
 import dataclasses
 import importlib
 import json
+import math
 import sys
 import time
 
@@ -47,6 +48,9 @@ def add_parser(subparsers):
     p.add_argument("--plot", metavar="FIT.png", help="draw data, fit and residuals to this PNG")
     p.add_argument("--unit", default="mm", help="the reference unit, for reports and plots (default mm)")
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
+    p.add_argument("--force", action="store_true",
+                   help="--out: write even a curve that is not monotone or whose rms is over %d times the sweep's "
+                   "noise floor (refused by default: such a sweep's reference is rarely a function of its reading)" % RMS_REFUSE)
     p.set_defaults(func=run)
 
 
@@ -144,6 +148,27 @@ def report(result, sweep, floors, unit, reason=None):
     return lines
 
 
+RMS_WARN = 10  # rms / noise floor: a poor fit (a quadratic on a knee-shaped pot is ~17)
+RMS_REFUSE = 50  # ... and a sweep that is not a calibration (a reference that is not a function of the reading)
+SPAN_REFUSE = 0.02  # rms over 2 % of the reference's span (1.2 mm on a 60 mm pot; BCM-3 leaves ~0.2 %)
+
+
+def refusals(result, noise, span):
+    """Why a fit must not be written as a calibration (empty when it may)."""
+    why = []
+    if not (math.isfinite(result.rms) and math.isfinite(result.max_abs)):
+        why.append("its error is not finite (rms %s): the sweep's numbers are out of range" % result.rms)
+    elif span and result.rms > SPAN_REFUSE * span:
+        why.append("its rms %.4g is %.1f %% of the reference's span %.4g (limit %.0f %%): is the reference a function "
+                   "of the reading?" % (result.rms, 100 * result.rms / span, span, 100 * SPAN_REFUSE))
+    elif noise and result.rms > RMS_REFUSE * noise:
+        why.append("its rms %.4g is %.0f times the sweep's noise floor %.4g (limit %d): is the reference a function "
+                   "of the reading?" % (result.rms, result.rms / noise, noise, RMS_REFUSE))
+    if not result.monotone:
+        why.append("the curve is not monotone, so the firmware could not tell positions apart")
+    return why
+
+
 def run(args):
     from host.sweep import load_sweep
 
@@ -176,12 +201,20 @@ def run(args):
             raise UserError("cannot write plot %s: %s" % (args.plot, exc)) from None
         out["plot"] = str(args.plot)
     if args.out:
+        finite = [v for v in sweep.y if math.isfinite(v)]
+        why = refusals(result, noise, (max(finite) - min(finite)) if finite else None)
+        if why and not args.force:
+            raise UserError("not writing %s: %s (--force writes it anyway)" % (args.out, "; ".join(why)))
+        if noise and RMS_WARN * noise < result.rms <= RMS_REFUSE * noise:
+            say("warning: rms %.4g is %.0f times the noise floor: a poor fit (try --model auto)" % (result.rms, result.rms / noise))
         bits = args.adc_bits or adc_bits_of(sweep)
         say("writing %s section of %s (%d-bit ADC)" % (args.pot, args.out, bits))
         try:
             crc = write_pot(args.out, args.pot, result, bits, pot_id=args.pot_id, board=args.board)
         except OSError as exc:
             raise UserError("cannot write calibration %s: %s" % (args.out, exc)) from None
+        except (ValueError, OverflowError) as exc:  # no inf or NaN ever reaches a file
+            raise UserError("cannot export this fit to %s: %s" % (args.out, exc)) from None
         out["calibration"] = {"path": str(args.out), "section": args.pot, "crc32": crc, "adc_bits": bits,
                               "board": args.board, "pot_id": args.pot_id}
     if args.json:
