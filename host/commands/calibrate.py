@@ -4,6 +4,7 @@ from pathlib import Path
 
 from host.errors import UserError
 from host.guided.flow import STEPS, Options, run_steps
+from host.numbers import ranged
 
 
 def add_parser(subparsers):
@@ -24,16 +25,16 @@ def add_parser(subparsers):
     p.add_argument("--plots", default=None, metavar="DIR", help="where to write the PNG plots (default: beside --out)")
     p.add_argument("--reference", choices=("adc", "manual"), default="adc",
                    help="pots: the reference sensor on the board's reference ADC input (adc), or dial-gauge readings typed in (manual)")
-    p.add_argument("--ref-zero-mm", type=float, default=None, help="reference sensor: position at code 0, mm (real boards)")
-    p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over its full scale, mm (real boards)")
-    p.add_argument("--manual-points", type=int, default=12, help="--reference manual: stops per direction (default 12)")
+    p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
+    p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over its full scale, mm (real boards)")
+    p.add_argument("--manual-points", type=ranged(int, 3, 200), default=12, help="--reference manual: stops per direction (default 12)")
     add_method_arguments(p)
     add_gauge_arguments(p)
-    p.add_argument("--duty", type=int, default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
-    p.add_argument("--rounds", type=int, default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
-    p.add_argument("--levels", type=int, default=8, help="force: duty steps per loading (default 8)")
-    p.add_argument("--max-duty", type=int, default=5000, help="force: largest open-loop duty (default 5000: ~17 N)")
-    p.add_argument("--anchor-mm", type=float, default=45.0, help="force: where the fibre goes taut, mm (default 45)")
+    p.add_argument("--duty", type=ranged(int, 100, 10000), default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
+    p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
+    p.add_argument("--levels", type=ranged(int, 2, 50), default=8, help="force: duty steps per loading (default 8)")
+    p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=5000, help="force: largest open-loop duty (default 5000: ~17 N)")
+    p.add_argument("--anchor-mm", type=ranged(float, 0, 60), default=45.0, help="force: where the fibre goes taut, mm (default 45)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
     p.set_defaults(func=run)
 
@@ -50,8 +51,8 @@ def add_method_arguments(p):
     p.add_argument("--model", default="auto", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")
-    p.add_argument("--order", type=int, default=None, help="pot model order (default: bcm 3, pwl 5)")
-    p.add_argument("--budget", type=int, default=32, help="--model auto: most numbers a pot curve may store "
+    p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
+    p.add_argument("--budget", type=ranged(int, 4, 4096), default=32, help="--model auto: most numbers a pot curve may store "
                    "(default 32: a table of up to 17 knots)")
     p.add_argument("--df-order", default="auto", help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
                    "cross-validation finds a higher order more than 5 %% better")
@@ -69,8 +70,8 @@ def add_gauge_arguments(p):
     p.add_argument("--gauge", choices=("display", "adc"), default="display",
                    help="force gauge readings: from its display (typed in on a real bench; default) or from its analog "
                    "output wired to the board's reference ADC input (adc)")
-    p.add_argument("--gauge-zero-n", type=float, default=None, help="--gauge adc: force at ADC code 0, N (real boards)")
-    p.add_argument("--gauge-span-n", type=float, default=None, help="--gauge adc: force over the ADC's full scale, N (real boards)")
+    p.add_argument("--gauge-zero-n", type=ranged(float, -1000, 1000), default=None, help="--gauge adc: force at ADC code 0, N (real boards)")
+    p.add_argument("--gauge-span-n", type=ranged(float, 0.001, 100000), default=None, help="--gauge adc: force over the ADC's full scale, N (real boards)")
 
 
 def make_rig(args, prompter, session):

@@ -6,6 +6,7 @@ from pathlib import Path
 
 from host.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
 from host.errors import UserError
+from host.numbers import ranged
 
 
 def add_parser(subparsers):
@@ -26,7 +27,7 @@ def add_parser(subparsers):
     p.add_argument("--out", metavar="DIR", default="compare_out", help="output directory (default compare_out)")
     p.add_argument(
         "--jobs",
-        type=int,
+        type=ranged(int, 1, 64),
         default=1,
         help="worker processes (default 1; more helps only when CPUs are idle: each worker "
         "re-imports numpy/scipy, about 1 s)",

@@ -5,6 +5,7 @@ from pathlib import Path
 
 from host.commands.calibrate import add_gauge_arguments, add_method_arguments, make_rig, method_options
 from host.errors import UserError
+from host.numbers import ranged
 
 
 def add_parser(subparsers):
@@ -22,9 +23,9 @@ def add_parser(subparsers):
     p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")
     add_method_arguments(p)
     add_gauge_arguments(p)
-    p.add_argument("--ref-zero-mm", type=float, default=None, help="reference sensor: position at code 0, mm (real boards)")
-    p.add_argument("--ref-span-mm", type=float, default=None, help="reference sensor: travel over full scale, mm (real boards)")
-    p.add_argument("--rounds", type=int, default=2, help="force identification rounds (paper: 5; default 2)")
+    p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
+    p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over full scale, mm (real boards)")
+    p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force identification rounds (paper: 5; default 2)")
     p.set_defaults(func=run)
 
 

@@ -9,6 +9,7 @@ import time
 
 from host.errors import UserError
 from host.models import MODELS
+from host.numbers import ranged
 
 DEFAULT_ORDER = {"bcm": 3, "pcm": 10, "pcm-raw": 10, "cheb": 10, "spline": 8, "pchip": 8, "lut": 16, "pwl": 5}
 MAX_ORDER = 40
@@ -30,19 +31,19 @@ def add_parser(subparsers):
         choices=list(MODELS) + ["auto"],
         help="calibration model (default bcm); auto = the cheapest firmware model near the noise floor",
     )
-    p.add_argument("--order", type=int, help="degree or number of knots/points (default: bcm 3, pwl 5, pcm 10, ...)")
+    p.add_argument("--order", type=ranged(int, 1, 64), help="degree or number of knots/points (default: bcm 3, pwl 5, pcm 10, ...)")
     p.add_argument("--bounds", choices=("data", "paper"), default="data",
                    help="bcm search box: data (handles in the reference range +-10%%, w0=1, weight ratios 1/60..60) "
                    "or paper (handles in [0, 60], weights in [1, 60])")
-    p.add_argument("--budget", type=int, default=12, help="auto: most numbers the chosen model may store (default 12)")
+    p.add_argument("--budget", type=ranged(int, 4, 4096), default=12, help="auto: most numbers the chosen model may store (default 12)")
     p.add_argument("--out", metavar="CALIB.json", help="write (or update) this pot's section of the calibration file")
     p.add_argument("--pot", choices=("pot1", "pot2"), default="pot1", help="which pot --out writes (default pot1)")
     p.add_argument("--pot-id", metavar="ID",
                    help="--out: identity of the physical pot, e.g. its serial (default: the one the file already "
                    "records for --pot, else none)")
     p.add_argument("--board", metavar="NAME", help="--out: identity of the board (default: keep the file's)")
-    p.add_argument("--adc-bits", type=int, help="--out: the board's ADC bits (default: guessed from the raw range)")
-    p.add_argument("--full-scale", type=float, metavar="RAW",
+    p.add_argument("--adc-bits", type=ranged(int, 1, 16), help="--out: the board's ADC bits (default: guessed from the raw range)")
+    p.add_argument("--full-scale", type=ranged(float, 1e-09, 1000000000000.0), metavar="RAW",
                    help="the converter's full scale in raw units, e.g. 3.3 for volts: rows tied on a rail (0 or "
                    "this) are clipped, and the sweep must cover 25%% of it (default: known only for ADC codes)")
     p.add_argument("--plot", metavar="FIT.png", help="draw data, fit and residuals to this PNG")

@@ -2,6 +2,7 @@
 
 from host.board_client import BoardError, add_port_arguments, open_board, settle
 from host.errors import UserError
+from host.numbers import ranged
 from host.terminal import end_progress, progress_line
 
 
@@ -13,9 +14,9 @@ def add_parser(subparsers):
                               "drives it toward a stroke end and it cannot settle. On --port sim, hook a load with "
                               "--load (e.g. --load gauge: negative targets pull against a force gauge).")
     add_port_arguments(p)
-    p.add_argument("--target", type=float, required=True, metavar="N", help="target force, newtons (negative pulls the block toward 0 mm)")
-    p.add_argument("--tolerance", type=float, default=0.1, metavar="N", help="settled when within this, N (default 0.1)")
-    p.add_argument("--timeout", type=float, default=15.0, metavar="S", help="give up after S seconds (default 15)")
+    p.add_argument("--target", type=ranged(float, -200, 200), required=True, metavar="N", help="target force, newtons (negative pulls the block toward 0 mm)")
+    p.add_argument("--tolerance", type=ranged(float, 0.001, 100), default=0.1, metavar="N", help="settled when within this, N (default 0.1)")
+    p.add_argument("--timeout", type=ranged(float, 0.1, 3600), default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave force mode on at the end (until the host timeout)")
     p.set_defaults(func=run)
 

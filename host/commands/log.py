@@ -4,6 +4,7 @@ import sys
 
 from host.board_client import add_port_arguments, open_board
 from host.errors import UserError
+from host.numbers import ranged
 from host.telemetry_log import CALIBRATED_FIELDS, record
 from host.terminal import end_progress, progress_line
 
@@ -16,8 +17,8 @@ def add_parser(subparsers):
                               "once); the raw ADC codes are always logged.")
     add_port_arguments(p)
     p.add_argument("--out", required=True, help="CSV file to write (columns: firmware.telemetry.FIELDS)")
-    p.add_argument("--seconds", type=float, default=None, help="stop after this long (default: until Ctrl-C)")
-    p.add_argument("--rate", type=int, default=1000, metavar="HZ", help="telemetry rate, Hz (default 1000, at most the board's loop rate)")
+    p.add_argument("--seconds", type=ranged(float, 0.001, 86400), default=None, help="stop after this long (default: until Ctrl-C)")
+    p.add_argument("--rate", type=ranged(int, 1, 1000), default=1000, metavar="HZ", help="telemetry rate, Hz (default 1000, at most the board's loop rate)")
     p.set_defaults(func=run)
 
 

@@ -2,15 +2,16 @@
 
 from host.board_client import add_port_arguments, open_board, settle
 from host.errors import UserError
+from host.numbers import ranged
 from host.terminal import end_progress, progress_line
 
 
 def add_parser(subparsers):
     p = subparsers.add_parser("move", help="move the output block to a position (closed loop)")
     add_port_arguments(p)
-    p.add_argument("--to", type=float, required=True, metavar="MM", help="target position of the output block, mm (0-60)")
-    p.add_argument("--tolerance", type=float, default=0.2, metavar="MM", help="settled when within this, mm (default 0.2)")
-    p.add_argument("--timeout", type=float, default=15.0, metavar="S", help="give up after S seconds (default 15)")
+    p.add_argument("--to", type=ranged(float, -65.5, 65.5), required=True, metavar="MM", help="target position of the output block, mm (0-60)")
+    p.add_argument("--tolerance", type=ranged(float, 0.001, 60), default=0.2, metavar="MM", help="settled when within this, mm (default 0.2)")
+    p.add_argument("--timeout", type=ranged(float, 0.1, 3600), default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave position mode on at the end (the firmware stops the motor "
                    "once heartbeats stop, after host_timeout_ms)")
     p.set_defaults(func=run)
