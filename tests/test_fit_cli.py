@@ -132,10 +132,10 @@ def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
 @pytest.mark.parametrize(
     "argv, fragment",
     [
-        (["fit", EXAMPLE, "--order", "abc"], "argument --order: invalid int value: 'abc'"),
+        (["fit", EXAMPLE, "--order", "abc"], "argument --order: 'abc' is not a whole number"),
         (["fit", EXAMPLE, "--model", "nurbs"], "argument --model: invalid choice"),
         (["fit"], "required: SWEEP.csv"),
-        (["compare", EXAMPLE, "--jobs", "two"], "argument --jobs: invalid int value"),
+        (["compare", EXAMPLE, "--jobs", "two"], "argument --jobs: 'two' is not a whole number"),
         (["fit", EXAMPLE, "--no-such-option"], "unrecognized arguments: --no-such-option"),
         (["no-such-command"], "invalid choice: 'no-such-command'"),
     ],
