@@ -12,6 +12,7 @@ import collections
 import random
 import time
 
+import numpy as np
 import serial
 
 from firmware import protocol as P
@@ -19,6 +20,33 @@ from host.errors import UserError
 from host.frames import FrameDecoder
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
+NO_DATA_S = 3.0  # wall-clock seconds without a telemetry record: the board stopped streaming
+_T_COL = P.FIELDS.index("t_us")
+_T_WRAP = 1 << 30  # the firmware's t_us wraps here
+_T_JUMP_US = 10000000  # a step this long is a restart of the firmware's clock, not time
+
+
+class BoardTime:
+    """The board's own time, in seconds, spanned by the telemetry records fed to it (their t_us).
+
+    Host waits for the actuator (settling, holding, logging N seconds) are measured in it rather
+    than in the host's wall clock: a virtual board on a loaded machine drops the ticks it cannot
+    catch up (boards/sim/machine.py), so per wall-clock second it moves less, and a wait timed by
+    the host's clock would give it less time than on a quiet machine. On a real board the two
+    clocks agree."""
+
+    def __init__(self):
+        self.seconds = 0.0
+        self._last = None
+
+    def add(self, rows):
+        """Count the records `rows` (int array, columns P.FIELDS); returns the seconds so far."""
+        if len(rows):
+            t = rows[:, _T_COL].astype(np.int64)
+            steps = np.diff(t, prepend=t[0] if self._last is None else self._last) % _T_WRAP
+            self.seconds += float(steps[steps < _T_JUMP_US].sum()) / 1e6
+            self._last = int(t[-1])
+        return self.seconds
 
 
 class BoardError(UserError):
@@ -238,6 +266,8 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
     """Run `mode` towards `target` until telemetry `field` stays within `tolerance` of it for
     `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away.
     `last`, a dict, receives the newest record (field name -> int), e.g. to say where it ended.
+    `timeout_s`, `hold_s` and the seconds returned are the board's own time (BoardTime); if no
+    telemetry arrives for NO_DATA_S of wall-clock time it gives up (not settled).
 
     The value judged is the mean of the last `window` records (0.1 s at the 100 Hz stream): a
     single reading carries the pots' noise, which near a knee (where one code spans ~3x more
@@ -246,33 +276,40 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
     board.call("mode", mode)
     board.call("target", int(target))
     board.start_stream(100)
-    start = time.monotonic()
+    clock = BoardTime()
+    last_data = time.monotonic()
     inside_since = None
     value = None
     recent = []
-    next_progress = start
+    next_progress = 0.0
     try:
-        while time.monotonic() - start < timeout_s:
+        while clock.seconds < timeout_s:
             board.heartbeat_if_due()
-            for frame in board.frames(timeout=0.05):
+            frames = board.frames(timeout=0.05)
+            for frame in frames:
                 rows = frame.records()
+                clock.add(rows)
                 recent.extend(int(v) for v in rows[:, index])
                 if last is not None and len(rows):
                     last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
+            if frames:
+                last_data = time.monotonic()
+            elif time.monotonic() - last_data >= NO_DATA_S:
+                break
             if not recent:
                 continue
             del recent[:-window]
             value = sum(recent) / len(recent)
-            now = time.monotonic()
+            now = clock.seconds
             if len(recent) == window and abs(value - target) <= tolerance:
-                inside_since = inside_since or now
+                inside_since = now if inside_since is None else inside_since
                 if now - inside_since >= hold_s:
-                    return True, value, now - start
+                    return True, value, now
             else:
                 inside_since = None
             if progress and now >= next_progress:
                 next_progress = now + 0.2  # a readable refresh, not one line per frame
-                progress(value, now - start)
-        return False, value, time.monotonic() - start
+                progress(value, now)
+        return False, value, clock.seconds
     finally:
         board.stop_stream()

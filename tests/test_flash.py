@@ -74,7 +74,7 @@ def test_closed_loop_move_on_the_flashed_board(flashed, capsys):
         assert client.call("status")["mode"] == "idle"  # the move ends with the motor off
 
 
-def gauge_display(board, after, timeout=3.0):
+def gauge_display(board, after, timeout=30.0):
     """The simulated gauge's display (N), as rewritten by the rig after wall time `after`."""
     path = board.root / "gauge.json"
     deadline = time.monotonic() + timeout

@@ -32,3 +32,18 @@ def test_micropython_is_real_and_locks_heap():
 def test_firmware_package_imports_under_micropython():
     proc = run_micropython("import firmware\nprint('ok')")
     assert proc.stdout.strip() == "ok"
+
+
+def test_missing_shared_data_skips_with_the_reason_but_fails_under_ci(tmp_path, monkeypatch):
+    import pytest
+    from conftest import shared_dir
+
+    missing = tmp_path / "shared" / "realdata"
+    monkeypatch.delenv("CI", raising=False)
+    with pytest.raises(pytest.skip.Exception, match="realdata is missing: the curves"):
+        shared_dir(missing, "the curves")
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="under CI"):
+        shared_dir(missing, "the curves")
+    missing.mkdir(parents=True)
+    assert shared_dir(missing, "the curves") == missing  # present: no skip, CI or not

@@ -64,3 +64,27 @@ print(w.reference_on, w.load_kind, json.loads(open('gauge.json').read())["force_
 """ % (str(tmp_path), str(REPO / "boards" / "sim.json"))
     out = run_micropython(source).stdout.split()
     assert out == ["pot1", "gauge", "True"]
+
+
+def test_waiting_for_a_fresh_gauge_display_keeps_heartbeating(tmp_path):
+    """The motor may push against the gauge while the host waits for the display: the wait
+    must keep the firmware's host watchdog fed (it stops the motor after 1 s of silence)."""
+    import json
+    import os
+
+    from host.guided.prompts import Prompter
+    from host.guided.rig import Rig
+
+    display = tmp_path / "gauge.json"
+    display.write_text(json.dumps({"force_n": 1.0, "t_s": 0.0}))
+    os.utime(display, (0, 0))  # stale: written long ago
+    beats = []
+
+    def beat():
+        beats.append(1)
+        if len(beats) == 3:  # the rig refreshes the display after a few polls
+            display.write_text(json.dumps({"force_n": 2.5, "t_s": 1.0}))
+
+    rig = Rig(Prompter(yes=True, out=lambda s: None), tmp_path)
+    assert rig.gauge_reading_n(beat=beat) == 2.5
+    assert len(beats) == 3  # one before each look at the display: two stale, then the fresh one

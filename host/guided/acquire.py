@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from firmware import protocol as P
-from host.board_client import settle
+from host.board_client import NO_DATA_S, BoardTime, settle
 
 COL = {name: i for i, name in enumerate(P.FIELDS)}
 STREAM_HZ = 200
@@ -28,18 +28,26 @@ def reset(client):
 
 
 def collect(client, seconds, until=None, hz=STREAM_HZ):
-    """Telemetry records (int array, columns P.FIELDS) for `seconds` or until `until(records)`."""
+    """Telemetry records (int array, columns P.FIELDS) for `seconds` of the board's own time
+    (BoardTime) or until `until(records, seconds so far)`; what came if the board sends nothing
+    for max(NO_DATA_S, seconds) of wall-clock time."""
     client.start_stream(hz)
     chunks = []
-    start = time.monotonic()
+    clock = BoardTime()
+    last_data = time.monotonic()
     try:
-        while time.monotonic() - start < seconds:
+        while clock.seconds < seconds:
             client.heartbeat_if_due()
             got = [f.records().copy() for f in client.frames(timeout=0.05)]
             if got:
+                last_data = time.monotonic()
+                for rows in got:
+                    clock.add(rows)
                 chunks.extend(got)
-                if until is not None and until(np.concatenate(chunks), time.monotonic() - start):
+                if until is not None and until(np.concatenate(chunks), clock.seconds):
                     break
+            elif time.monotonic() - last_data >= max(NO_DATA_S, seconds):
+                break
     finally:
         client.stop_stream()
     return np.concatenate(chunks) if chunks else np.zeros((0, P.RECORD_WORDS), dtype=np.int32)

@@ -82,7 +82,7 @@ class GaugeOnSide:
         """One reading in N (display readings averaged, or the gauge channel over `records`)."""
         if self.rig.gauge == "adc":
             return self.rig.read_gauge_n(self.client, records)
-        return float(np.mean([self.rig.gauge_reading_n() for _ in range(reads)]))
+        return float(np.mean([self.rig.gauge_reading_n(beat=self.client.heartbeat_if_due) for _ in range(reads)]))
 
     def tare(self, move=False):
         """Tare with the fibre slack (after moving the block back to slack when `move`)."""

@@ -95,13 +95,17 @@ class Rig:
         self.state["fault"] = fault
         self._write()
 
-    def gauge_reading_n(self, question="Force gauge reading (N):", max_age_s=1.0):
-        """The force gauge's reading: from the virtual rig's display, else typed by the person."""
+    def gauge_reading_n(self, question="Force gauge reading (N):", max_age_s=1.0, beat=None):
+        """The force gauge's reading: from the virtual rig's display, else typed by the person.
+        `beat` (e.g. client.heartbeat_if_due) is called while waiting for a fresh display: the
+        motor may be running meanwhile, and the firmware stops it after 1 s without the host."""
         if not self.virtual:
             return self.prompter.number(question)
         path = self.root / "gauge.json"
-        deadline = time.monotonic() + 3.0
+        deadline = time.monotonic() + 10.0
         while time.monotonic() < deadline:
+            if beat is not None:
+                beat()
             try:
                 if time.time() - path.stat().st_mtime <= max_age_s:
                     return float(json.loads(path.read_text())["force_n"])
