@@ -65,9 +65,6 @@ class Link:
         """One main-loop visit: handle pending input, then send pending telemetry."""
         self.read_input()
         self.send_telemetry()
-        if self._reset_pending:
-            self._reset_pending = False
-            self.app.reset()
 
     def read_input(self):
         if self._poller is None:
@@ -118,7 +115,10 @@ class Link:
         """Answer one command line with exactly one frame; never raises (except Ctrl-C)."""
         self.lines += 1
         if line == self._last_line and self._last_reply:
-            self.write(self._last_reply)  # a retry of the command just done: same answer again
+            # a retry of the command just done (its reply was lost): the same answer again, and
+            # the host was heard, or a request whose replies got lost would look like silence
+            self.app.heartbeat()
+            self.write(self._last_reply)
             return
         seq = -1
         try:
@@ -132,6 +132,9 @@ class Link:
         self._last_line = line
         self._last_reply = frame
         self.write(frame)
+        if self._reset_pending:  # now that its reply is out, before the next line is read
+            self._reset_pending = False
+            self.app.reset()
 
     def _describe(self, exc):
         text = str(exc)

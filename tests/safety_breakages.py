@@ -12,7 +12,8 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-TESTS = ["tests/test_firmware_cases.py", "tests/test_firmware_wrap.py"]
+FIRMWARE_TESTS = ["tests/test_firmware_cases.py", "tests/test_firmware_wrap.py"]
+# (what, file, code, broken code[, tests that must catch it]); firmware breaks run FIRMWARE_TESTS
 BREAKS = [
  ("watchdog armed only in position and force mode, not open loop", "firmware/controller.py",
   "        if self._tick() and mode != IDLE:", "        if self._tick() and (mode == POSITION or mode == FORCE):"),
@@ -30,12 +31,25 @@ BREAKS = [
   "    except Exception as exc:  # anything else (RecursionError, ...): the board must still boot", "    except ZeroDivisionError as exc:"),
  ("the silence count grows without bound when the watchdog is off", "firmware/safety.py",
   "        if n < SILENCE_CAP:  # bounded however long the host is gone", "        if True:"),
+ ("flash skips its CRC read-back", "host/flashing.py",
+  "            if int(got.get(name, -1)) != crc:", "            if False:",
+  ["tests/test_flash.py::test_flash_reads_back_every_file_it_installed"]),
+ ("flash removes the live file before moving the new one in (not an atomic swap)", "host/flashing.py",
+  "        try:\n            os.rename(new, live)\n        except OSError:",
+  "        try:\n            _rmtree(live)\n            import time\n            time.sleep(1)\n            os.rename(new, live)\n        except OSError:",
+  ["tests/test_flash.py::test_flash_killed_at_many_points_leaves_old_or_new_calibration"]),
+ ("flash installs a calibration without checking it first", "host/flashing.py",
+  "    check_files(board_path, calibration)\n", "",
+  ["tests/test_flash.py::test_flash_refuses_bad_files_and_another_board_before_touching_the_board"]),
+ ("host calibrate writes an empty file before measuring", "host/guided/flow.py",
+  "    accepted = {}\n    for step in steps:", "    write_calibration(path, new_document(board=board_name))\n    accepted = {}\n    for step in steps:",
+  ["tests/test_calibrate_keeps.py"]),
 ]
 
 
 def main():
     caught = 0
-    for what, path, old, new in BREAKS:
+    for what, path, old, new, *tests in BREAKS:
         file = REPO / path
         src = file.read_text()
         if old not in src:
@@ -43,7 +57,7 @@ def main():
             continue
         file.write_text(src.replace(old, new, 1))
         try:
-            r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", *TESTS], cwd=REPO,
+            r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-x", *(tests[0] if tests else FIRMWARE_TESTS)], cwd=REPO,
                                capture_output=True, text=True, timeout=900)
         finally:
             file.write_text(src)

@@ -163,7 +163,7 @@ def test_a_silent_host_gets_the_boot_parameters_back(data_path):
 
 
 def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
-    """Empty, truncated, not JSON, deeply nested (200 KB of '['), huge, binary: the App boots
+    """Empty, truncated, not JSON, deeply nested (200 KB and 60 KB of '['), huge, binary: the App boots
     with no calibration on both interpreters and says why (a board that cannot boot cannot be
     repaired from the host)."""
     import json as _json
@@ -173,7 +173,8 @@ def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
         "empty.json": b"",
         "truncated.json": good[: len(good) // 2].encode(),
         "text.json": b"hello",
-        "nested.json": b"[" * 200000 + b"]" * 200000,
+        "nested.json": b"[" * 200000 + b"]" * 200000,  # refused by size before parsing
+        "nested_small.json": b"[" * 30000 + b"]" * 30000,  # under the size limit: the parser's recursion
         "huge.json": b'{"format": "' + b"x" * 2000000 + b'"}',
         "binary.json": bytes(range(256)) * 16,
         "missing.json": None,

@@ -291,3 +291,28 @@ def test_flash_refuses_bad_files_and_another_board_before_touching_the_board(cal
         assert code == 2 and "runs lsea-kit for board sim, not pico" in err[-1], err
         with BoardClient(board.path) as client:
             assert client.status_info["calibration_crc"] == crc
+
+
+def test_flash_reads_back_every_file_it_installed(calibrations, monkeypatch, tmp_path):
+    """The CRCs the board reports after the swap are compared with the files: a board that
+    holds something else (here: mpremote's read-back reports other CRCs) fails the flash."""
+    import host.flashing as flashing
+
+    calls = []
+
+    def fake_mpremote(port, *commands, timeout=120):
+        calls.append(commands)
+        code = " ".join(" ".join(c) for c in commands)
+        if "swapped" in code or "os.rename" in code:
+            return "swapped\n"
+        if "crc32" in code:
+            return "board.json 1\ncalibration.json 2\n"
+        return ""
+
+    monkeypatch.setattr(flashing, "mpremote", fake_mpremote)
+    port = tmp_path / "ttyFAKE"
+    port.write_text("")
+    with pytest.raises(flashing.UserError) as info:
+        flashing.flash(str(port), "sim", str(calibrations["a"][0]), progress=lambda s: None, ask_board=False)
+    assert "verification failed" in str(info.value)
+    assert any("crc32" in " ".join(" ".join(c) for c in cmds) for cmds in calls)

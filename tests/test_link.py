@@ -84,7 +84,16 @@ def test_cpython_parser_answers_every_line_once(raw_lines, seed):
     for line in lines:
         link.handle_line(line)
     check_one_reply_per_line(lines, replies(bytes(out)))
-    assert app.motor is not None
+    # whatever the lines did, the board is in a state it can be in: a known mode, a duty within
+    # range, and with the mode idle the bridge off; after a stop it is off in any case
+    st = app.status()
+    assert st["mode"] in ("idle", "open_loop", "position", "force") and abs(st["duty"]) <= 10000, st
+    app.step(None)
+    if app.status()["mode"] == "idle":
+        assert app.motor.duty == 0 and app.ctrl.duty == 0
+    link.handle_line(P.format_command(60000, "stop").strip())
+    app.step(None)
+    assert app.status()["mode"] == "idle" and app.motor.duty == 0
 
 
 def test_micropython_parser_answers_every_line_once(tmp_path):
@@ -174,3 +183,30 @@ def test_idle_main_loop_polling_allocates_nothing(mpy):
         "micropython.heap_unlock()\nprint('ok', i)\n"
     )
     assert proc.stdout.split() == ["ok", "1000"]
+
+
+def test_a_resent_command_counts_as_hearing_the_host():
+    """A host whose replies get lost resends the same line; the firmware answers from its cache
+    and must count it as the host speaking, or the watchdog stops the motor mid-request."""
+    app, link, out = make_link()
+    link.handle_line(P.format_command(1, "set", "host_timeout_ms", 50).strip())
+    link.handle_line(P.format_command(2, "mode", "open_loop").strip())
+    target = P.format_command(3, "target", 2000).strip()
+    link.handle_line(target)
+    for _ in range(6):  # 6 x 30 steps, the same line resent each time: never 50 silent steps
+        for _ in range(30):
+            app.step(None)
+        link.handle_line(target)
+    st = app.status()
+    assert st["faults"] == [] and st["mode"] == "open_loop", st
+
+
+def test_reset_happens_before_the_next_line_is_handled():
+    """`reset` then `mode open_loop` read in one poll: the reset must not undo the mode."""
+    app, link, out = make_link()
+    link.handle_line(P.format_command(1, "mode", "open_loop").strip())
+    app.safety.trip(4)  # a latched fault to clear
+    link.handle_line(P.format_command(2, "reset").strip())
+    link.handle_line(P.format_command(3, "mode", "open_loop").strip())
+    link.poll = None  # nothing else may run the reset later
+    assert app.status()["mode"] == "open_loop" and app.status()["faults"] == []
