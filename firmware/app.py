@@ -118,6 +118,10 @@ class App:
         except (ValueError, TypeError, AttributeError, MemoryError) as exc:
             self.calibration_error = "calibration unusable: %s" % (exc,)
             return
+        made_for = getattr(cal, "board", None)
+        if made_for is not None and made_for != self.board["name"]:
+            self.calibration_error = "calibration made for board %s, this board is %s" % (made_for, self.board["name"])
+            return
         if meas.adc_bits != self.board["adc_bits"]:
             self.calibration_error = "calibration made for a %d-bit ADC, this board's is %d-bit" % (
                 meas.adc_bits, self.board["adc_bits"])

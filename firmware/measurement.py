@@ -109,8 +109,28 @@ class Measurement:
         st[LAST_CODE] = (1 << self.adc_bits) - 1
         self._play = self._load_force  # bound once: found in the instance by viper's first look
         self.t1 = self.t2 = None
+        self._check_rising()
         if tabulate and self.adc_bits <= TABLE_MAX_BITS:
             self._tabulate()
+
+    def _check_rising(self):
+        """Refuse (ValueError) a pot curve whose position falls anywhere as its code rises: the
+        firmware's convention is that both readings grow toward 60 mm, and a falling curve turns
+        every closed loop round (a position target runs into the stroke end)."""
+        n = self.st[LAST_CODE] + 1
+        for name, conv, k in (("pot1", self.conv1, self.k1), ("pot2", self.conv2, self.k2)):
+            prev = conv(0, k)
+            first = prev
+            code = 1
+            while code < n:
+                v = conv(code, k)
+                if v < prev:
+                    raise ValueError("%s's curve falls at code %d (%d um after %d): positions must grow with the code"
+                                     % (name, code, v, prev))
+                prev = v
+                code += 1
+            if prev <= first:
+                raise ValueError("%s's curve does not rise over the ADC's codes" % name)
 
     def _tabulate(self):
         """D1* and D2 for every ADC code, made once at boot by the same integer functions the

@@ -648,3 +648,33 @@ def case_boot_survives_any_calibration(path, bad_paths):
         app.set_target(1000)
         whys.append(st["calibration_error"].split(":")[0])
     return {"why": whys}
+
+
+def case_calibrations_the_board_refuses(path):
+    """A pot table whose positions fall as the code rises, and a calibration made for another
+    board: both refused with the reason; closed loop refused, open loop still works."""
+    data = load(path)
+    app, _ = make_app(data)
+    whys = []
+    falling = dict(data["cal"])
+    kind, k = falling["pot2"]
+    if kind == "pwl":  # reverse the knot values: the same table, falling
+        n = k[0]
+        k = k[:2 + n] + list(reversed(k[2 + n:]))
+        falling["pot2"] = ["pwl", k]
+    other = Cal(data["cal"])
+    other.board = "pico"
+    for cal in (Cal(falling), other):
+        app.set_calibration(cal)
+        st = app.status()
+        assert st["calibration_crc"] is None and st["calibration_error"], st
+        try:
+            app.set_mode("position")
+            raise AssertionError("closed loop accepted")
+        except ValueError:
+            pass
+        app.set_mode("open_loop")
+        app.set_mode("idle")
+        whys.append(st["calibration_error"])
+    assert "falls" in whys[0] and "pico" in whys[1], whys
+    return {"why": whys}

@@ -202,3 +202,8 @@ def test_board_main_puts_back_a_calibration_an_interrupted_install_left_aside(tm
 
     out = run_micropython(src).stdout
     assert "boot failed" in out and "['calibration.json']" in out, out
+
+
+def test_a_falling_pot_curve_and_another_boards_calibration_are_refused(data_path):
+    here, there = both("case_calibrations_the_board_refuses(PATH)", data_path)
+    assert here == there
