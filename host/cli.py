@@ -68,6 +68,10 @@ def _main(argv):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:  # serial.SerialException is one: the board unplugged, the port gone
+        print("error: %s (the board stopped answering or was unplugged?)" % (str(exc).strip() or type(exc).__name__),
+              file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":

@@ -77,11 +77,26 @@ def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1
 
 def load(path):
     """A logged CSV as a dict field -> numpy int64 array."""
+    import warnings
+
     import numpy as np
 
-    data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
-    with open(path) as fh:
-        header = fh.readline().strip().split(",")
+    from host.errors import UserError
+
+    try:
+        with open(path) as fh:
+            header = fh.readline().strip().split(",")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # numpy warns on an empty file; we say it below
+            data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+    except OSError as exc:
+        raise UserError("cannot read %s: %s" % (path, exc.strerror or exc)) from None
+    except ValueError as exc:
+        raise UserError("%s is not a telemetry log (host log writes one): %s" % (path, str(exc).splitlines()[0])) from None
+    if data.size == 0:
+        raise UserError("%s has no records (only a header): nothing to plot" % path)
+    if data.shape[1] != len(header):
+        raise UserError("%s: %d columns in the header, %d in the rows" % (path, len(header), data.shape[1]))
     return {name: data[:, i] for i, name in enumerate(header)}
 
 
