@@ -9,7 +9,7 @@ files written by the real calibration-file code: both pots as BCM-3 (the paper's
 Bezier) or as 12-knot free-knot tables (what `--model auto` picks on the simulated actuator),
 each fitted to a noisy sweep of the simulated actuator's pots, plus the default Df (order 8),
 force and friction models; or no calibration at all. `--calibration FILE` measures a file of
-your own (e.g. the one `host calibrate` wrote) as a further row.
+your own (e.g. the one `host calibrate` wrote) as a further row, relabelled for the bench's board.
 
 Instruments: ../shared/mcu/run-on-mcu (MicroPython v1.29 on qemu, 31-bit small ints, the
 targets' native emitters; needs qemu-system-arm) counts instructions; 1 ticks_us = INSNS_PER_TICK
@@ -297,7 +297,13 @@ def stage(cpu, extra_calibration, tmp):
     cals = [("no calibration", None)]
     cals += [(label, "/rom/" + f) for label, f in calibration_files(board, rom)]
     if extra_calibration:
-        shutil.copy(extra_calibration, rom / "cal_user.json")
+        # the file's sections as they are, labelled for this bench's board (the firmware refuses
+        # a calibration made for another board, e.g. the virtual board's "sim")
+        from host.calibration_file import read_calibration, write_calibration
+
+        doc = read_calibration(extra_calibration)
+        doc["board"] = board["name"]
+        write_calibration(rom / "cal_user.json", doc)
         cals.append((Path(extra_calibration).name, "/rom/cal_user.json"))
     return board, rom, cals
 

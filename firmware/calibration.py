@@ -22,6 +22,7 @@ leave 31 bits. This module runs unchanged under CPython; the host imports its ch
 """
 
 import json
+import os
 from array import array
 
 import binascii
@@ -177,12 +178,16 @@ class Calibration:
 def load_calibration(path):
     """The verified `Calibration` in file `path`, or CalibrationError saying what is wrong."""
     try:
-        with open(path, "rb") as f:
-            raw = f.read(MAX_BYTES + 1)  # a huge file must not take the board's heap at boot
+        size = os.stat(path)[6]
     except OSError:
         raise CalibrationError("no calibration file at %s" % path)
-    if len(raw) > MAX_BYTES:
-        raise CalibrationError("larger than %d bytes: not a calibration this firmware reads" % MAX_BYTES)
+    if size > MAX_BYTES:  # a huge file must not take the board's heap at boot
+        raise CalibrationError("%d bytes, larger than %d: not a calibration this firmware reads" % (size, MAX_BYTES))
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError:
+        raise CalibrationError("no calibration file at %s" % path)
     try:
         text = raw.decode()
     except Exception:  # UnicodeError on CPython, ValueError/UnicodeError on MicroPython
