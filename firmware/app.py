@@ -26,7 +26,7 @@ from firmware.controller import (
 from firmware.measurement import STROKE_CLAMP_UM, Measurement
 from firmware.motor import Motor
 from firmware.pi_control import DUTY_MAX
-from firmware.safety import FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
+from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
 from firmware.sampler import Sampler
 from firmware.telemetry import Ring
 
@@ -97,7 +97,6 @@ class App:
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
         # What every parameter is at boot: a host that goes silent gets them back (watch_host)
         self.boot_params = array("i", self.ctrl.p)
-        self._boot_silence = self.safety.silence_limit  # steps of silence that restore them
         self.params_restored = None
         self._timer = None
         self.timer_kind = hal.timer_kind(self.board)  # what the board file asks; start() says what it got
@@ -251,12 +250,11 @@ class App:
         return [PARAMS[i][0] for i in range(len(PARAMS)) if p[i] != self.boot_params[i]]
 
     def watch_host(self):
-        """Main loop, every pass: once the host has been silent for the boot watchdog time
-        (host_timeout_ms as the board booted, whatever it is set to now), every parameter goes
-        back to its boot value. A host killed mid-sweep must not leave the stroke limits open or
-        the watchdog off; the step's own watchdog has stopped any motion already."""
-        n = self._boot_silence
-        if n <= 0 or self.safety.silence < n:
+        """Main loop, every pass: once the watchdog has stopped the motor because the host went
+        silent (host_timeout latched), every parameter goes back to its boot value. A host
+        killed mid-sweep must not leave the stroke limits open for the next one; a host that is
+        merely quiet while the board is idle keeps its settings."""
+        if not self.safety.faults & FAULT_HOST_TIMEOUT:
             return False
         changed = self.params_changed()
         if not changed:

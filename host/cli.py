@@ -68,6 +68,8 @@ def _main(argv):
     except KeyboardInterrupt:
         print("interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        raise  # main() ends a closed pipe quietly
     except OSError as exc:  # serial.SerialException is one: the board unplugged, the port gone
         print("error: %s (the board stopped answering or was unplugged?)" % (str(exc).strip() or type(exc).__name__),
               file=sys.stderr)

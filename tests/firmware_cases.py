@@ -583,40 +583,51 @@ def case_range_checks(path):
 
 
 def case_host_silence_restores_params(path):
-    """A host that opened the stroke limits and turned the watchdog off, then went silent, gets
-    every parameter back at its boot value after the boot watchdog time (App.watch_host, which
-    run() calls each pass); status shows the limits in force. A host heard in time keeps them."""
+    """A host that opened the stroke limits, started a sweep and went silent: the watchdog stops
+    the motor and every parameter is back at its boot value (App.watch_host, which run() calls
+    each pass); status shows the limits in force. A host heard in time, or one quiet while the
+    board is idle, keeps its settings."""
     data = load(path)
     app, _ = make_app(data)
     boot = app.status()["stroke_um"]
     app.set_param("stroke_min_um", -65535)
     app.set_param("stroke_max_um", 65535)
-    app.set_param("host_timeout_ms", 0)
+    app.set_param("host_timeout_ms", 50)
     st = app.status()
     assert st["stroke_um"] == [-65535, 65535] and "host_timeout_ms" in st["params_changed"], st
     i = 0
-    while i < 1500:  # heard every 500 steps: nothing comes back
+    while i < 300:  # idle and quiet: nothing to stop, nothing comes back
         app.step(None)
         assert not app.watch_host()
-        if i % 500 == 0:
+        i += 1
+    app.set_mode("open_loop")
+    app.set_target(1500)
+    i = 0
+    while i < 300:  # moving, heard every 40 steps: nothing comes back
+        app.step(None)
+        assert not app.watch_host()
+        if i % 40 == 0:
             app.heartbeat()
         i += 1
-    assert app.status()["stroke_um"] == [-65535, 65535]
+    assert app.status()["stroke_um"] == [-65535, 65535] and app.status()["mode"] == "open_loop"
     app.heartbeat()  # the host's last word
     restored_at = None
     i = 0
-    while i < 1200:  # silent: back after the boot timeout, 1000 steps at 1 kHz
+    while i < 120:  # silent: the watchdog trips after 50 steps and the parameters come back
         app.step(None)
         if app.watch_host():
             restored_at = i + 1
         i += 1
     st = app.status()
-    assert restored_at == 1000, restored_at
-    assert st["stroke_um"] == boot and st["params_changed"] == [], st
+    assert restored_at == 50, restored_at
+    assert st["faults"] == ["host_timeout"] and st["stroke_um"] == boot and st["params_changed"] == [], st
     assert app.get_param("host_timeout_ms") == 1000
     assert "stroke_min_um" in st["params_restored"], st
     # the same through run(), as a board's main loop runs it: a link that only lets time pass
+    app.reset()
     app.set_param("stroke_max_um", 65535)
+    app.set_mode("open_loop")
+    app.set_target(1500)
 
     class SilentLink:
         polls = 0
@@ -627,7 +638,6 @@ def case_host_silence_restores_params(path):
             if SilentLink.polls == 150:
                 app.quit()
 
-    app.heartbeat()
     app.run(SilentLink())
     assert app.status()["stroke_um"] == boot, app.status()
     return {"restored_at": restored_at, "stroke_um": st["stroke_um"]}

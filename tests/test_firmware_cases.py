@@ -159,7 +159,7 @@ def test_targets_and_parameters_out_of_range_are_refused(data_path):
 
 def test_a_silent_host_gets_the_boot_parameters_back(data_path):
     here, there = both("case_host_silence_restores_params(PATH)", data_path)
-    assert here == there and here["restored_at"] == 1000
+    assert here == there and here["restored_at"] == 50
 
 
 def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
