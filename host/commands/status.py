@@ -57,7 +57,7 @@ def describe(status):
             value = "%s .. %s" % tuple(value)
         elif key == "params_changed":
             value = ", ".join(value) if value else "none"
-        elif key == "calibration_error" and value is None:
+        if value is None:
             value = "none"
         lines.append("%-30s %s" % (label, value))
     for key in sorted(k for k in status if k not in seen):
