@@ -216,7 +216,9 @@ class open_board:
     with `load` (a host.virtual_board.parse_load dict) hooked on its block."""
 
     def __init__(self, port, board=None, calibration=None, load=None, **client_options):
-        self.port = port
+        from host.ports import resolve
+
+        self.port = resolve(port)
         self.board = board
         self.calibration = calibration
         self.load = load
@@ -255,7 +257,9 @@ def add_port_arguments(parser):
     """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
     from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
-    parser.add_argument("--port", required=True, help="serial port of the board (e.g. /dev/ttyACM0), or 'sim' for a virtual board started for this command")
+    parser.add_argument("--port", default="auto",
+                        help="serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this "
+                        "command, or 'auto' (the default: the one board `host ports` finds)")
     parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
     parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
     parser.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,

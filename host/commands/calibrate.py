@@ -18,7 +18,8 @@ def add_parser(subparsers):
         "report the file's CRC. With --port sim the rig is simulated (boards/sim/bench_rig.py).",
     )
     p.add_argument("step", nargs="?", choices=STEPS + ("all",), default="all", help="one step, or all in order (default)")
-    p.add_argument("--port", required=True, help="serial port of the board (e.g. /dev/ttyACM0) or 'sim'")
+    p.add_argument("--port", default="auto",
+                   help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports; sim: boards/sim.json)")
     p.add_argument("--yes", action="store_true", help="no questions: mount automatically (virtual rig), accept results that pass every check")
     p.add_argument("--out", default="calibration.json", metavar="FILE", help="calibration file to write (default calibration.json)")

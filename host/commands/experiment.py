@@ -17,7 +17,8 @@ def add_parser(subparsers):
         "With --port sim everything runs on the virtual board (about 5 minutes).",
     )
     p.add_argument("name", choices=("paper",), help="which experiment set (paper)")
-    p.add_argument("--port", required=True, help="serial port of the board (e.g. /dev/ttyACM0) or 'sim'")
+    p.add_argument("--port", default="auto",
+                   help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
     p.add_argument("--out", required=True, metavar="DIR", help="report directory (report.md, PNGs, calibration files)")
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports)")
     p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")

@@ -10,7 +10,8 @@ def add_parser(subparsers):
                               description="Compile the firmware with mpy-cross for the board's architecture, copy it with the "
                               "board file and calibration through mpremote, swap it in with atomic renames, verify CRCs, "
                               "reset and check the firmware answers. Interrupting it leaves the previous install usable.")
-    p.add_argument("--port", required=True, help="serial port (e.g. /dev/ttyACM0), or 'sim' for a throwaway virtual board")
+    p.add_argument("--port", default="auto",
+                   help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
     p.add_argument("--board", default=None,
                    help="board name in boards/ or a board file path (default: what the board's firmware reports; sim for --port sim)")
     p.add_argument("--replace-board", action="store_true",
@@ -25,6 +26,9 @@ def run(args):
     def progress(text):
         print(text, flush=True)
 
+    from host.ports import resolve
+
+    args.port = resolve(args.port)
     if args.port == "sim":
         from host.flashing import resolve_board
         from host.virtual_board import VirtualBoard

@@ -15,7 +15,9 @@ from host.flashing import REPO, resolve_board
 
 class Session:
     def __init__(self, port, board=None, calibration=None, say=print):
-        self.port = port
+        from host.ports import resolve
+
+        self.port = resolve(port)
         self.board_arg = board
         self.calibration = Path(calibration) if calibration else None
         self.say = say

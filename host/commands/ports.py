@@ -1,0 +1,39 @@
+"""`host ports`: the serial ports on this machine, what is probably on each, and (--probe)
+whether lsea-kit firmware answers there."""
+
+from host import ports as port_list
+from host.ports import label
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser("ports", help="list serial ports and the boards on them (--port auto picks the only one)")
+    p.add_argument("--probe", action="store_true", help="ask each board-like port whether lsea-kit firmware answers")
+    p.set_defaults(func=run)
+
+
+def probe(device):
+    """'lsea-kit VERSION on BOARD' or why not."""
+    from host.board_client import BoardClient
+    from host.errors import UserError
+
+    try:
+        with BoardClient(device, check=False) as client:
+            st = client.handshake()
+        return "lsea-kit %s on %s" % (st.get("version"), st.get("board"))
+    except (UserError, OSError) as exc:
+        return "no lsea-kit firmware (%s)" % (str(exc).split(":")[0],)
+
+
+def run(args):
+    ports = port_list.list_ports()
+    if not ports:
+        print("no serial ports (plug the board in; or use --port sim)")
+        return 0
+    for device, vid, pid, desc in ports:
+        ids = "%04x:%04x" % (vid, pid) if vid is not None else "-"
+        what = label(vid, pid) or "not a board we know"
+        line = "%-20s %-10s %s (%s)" % (device, ids, what, desc)
+        if args.probe and label(vid, pid):
+            line += ": " + probe(device)
+        print(line)
+    return 0

@@ -1,0 +1,48 @@
+"""`--port auto` and `host ports`: the choosing rule on made-up port lists (USB ports are hardware
+that cannot exist here), and the probe and the automatic choice against a virtual board."""
+
+import pytest
+
+from host import cli, ports
+from host.errors import UserError
+
+PICO = ("/dev/ttyACM0", 0x2E8A, 0x0005, "Board in FS mode")
+CP210X = ("/dev/ttyUSB0", 0x10C4, 0xEA60, "CP2102 USB to UART Bridge Controller")
+MOUSE = ("/dev/ttyS0", None, None, "n/a")
+
+
+def test_known_boards_are_labelled_and_others_are_not():
+    assert "RP2040" in ports.label(0x2E8A, 0x0005)
+    assert "pyboard" in ports.label(0xF055, 0x9800)
+    assert "CP210x" in ports.label(0x10C4, 0xEA60)
+    assert ports.label(0x046D, 0xC077) is None and ports.label(None, None) is None
+
+
+def test_auto_picks_the_only_board_and_names_the_candidates_otherwise():
+    assert ports.choose([MOUSE, PICO]) == "/dev/ttyACM0"
+    with pytest.raises(UserError, match="no board found .*ttyS0"):
+        ports.choose([MOUSE])
+    with pytest.raises(UserError, match="2 boards found .*ttyACM0.*ttyUSB0"):
+        ports.choose([PICO, CP210X, MOUSE])
+    assert ports.resolve("sim") == "sim" and ports.resolve("/dev/ttyX") == "/dev/ttyX"
+
+
+def test_host_ports_lists_each_port_with_what_is_on_it(monkeypatch, capsys):
+    monkeypatch.setattr(ports, "list_ports", lambda: [PICO, CP210X, MOUSE])
+    assert cli.main(["ports"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) == 3 and "2e8a:0005" in out[0] and "RP2040" in out[0] and "not a board we know" in out[2]
+
+
+def test_port_auto_and_the_probe_find_a_board_running_our_firmware(monkeypatch, capsys):
+    """A virtual board stands in for a Pico on USB: listed with the RP2040's ids, `host status`
+    with no --port talks to it, and `host ports --probe` says lsea-kit answers there."""
+    from host.virtual_board import VirtualBoard
+
+    with VirtualBoard() as vb:
+        monkeypatch.setattr(ports, "list_ports", lambda: [(vb.path, 0x2E8A, 0x0005, "Board in FS mode"), MOUSE])
+        assert cli.main(["status", "--json"]) == 0
+        assert '"board": "sim"' in capsys.readouterr().out
+        assert cli.main(["ports", "--probe"]) == 0
+        out = capsys.readouterr().out.splitlines()
+        assert "lsea-kit" in out[0] and "on sim" in out[0], out
