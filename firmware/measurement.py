@@ -109,66 +109,68 @@ class Measurement:
         st[LAST_CODE] = (1 << self.adc_bits) - 1
         self._play = self._load_force  # bound once: found in the instance by viper's first look
         self.t1 = self.t2 = None
-        self._check_rising()
-        if tabulate and self.adc_bits <= TABLE_MAX_BITS:
-            self._tabulate()
+        self._scan(tabulate and self.adc_bits <= TABLE_MAX_BITS)
 
-    def _check_rising(self):
-        """Refuse (ValueError) a pot curve whose position falls anywhere as its code rises: the
+    def _scan(self, tabulate):
+        """One pass over every ADC code at boot, each curve evaluated once per code.
+
+        Refuses (ValueError) a pot curve whose position falls anywhere as its code rises: the
         firmware's convention is that both readings grow toward 60 mm, and a falling curve turns
-        every closed loop round (a position target runs into the stroke end)."""
-        n = self.st[LAST_CODE] + 1
-        for name, conv, k in (("pot1", self.conv1, self.k1), ("pot2", self.conv2, self.k2)):
-            prev = conv(0, k)
-            first = prev
-            code = 1
-            while code < n:
-                v = conv(code, k)
-                if v < prev:
-                    raise ValueError("%s's curve falls at code %d (%d um after %d): positions must grow with the code"
-                                     % (name, code, v, prev))
-                prev = v
-                code += 1
-            if prev <= first:
-                raise ValueError("%s's curve does not rise over the ADC's codes" % name)
+        every closed loop round (a position target runs into the stroke end).
 
-    def _tabulate(self):
-        """D1* and D2 for every ADC code, made once at boot by the same integer functions the
-        step would call (so the same bits as the host's), then looked up by the step: two
-        loads instead of two curve evaluations and the Df polynomial (~5000 Cortex-M0
-        instructions a step). Each table holds D - base as uint16 (2**adc_bits x 2 bytes: 8 KiB
-        at 12 bits), base centring the 65536 um window on the curve's two ends, in one pass
-        with no scratch arrays (a board's heap is small). A curve that leaves its window is
-        evaluated per step instead."""
+        With `tabulate`, also fills tables of D1* and D2 per code, made by the same integer
+        functions the step would call (so the same bits as the host's) and then looked up by
+        the step: two loads instead of two curve evaluations and the Df polynomial (~5000
+        Cortex-M0 instructions a step). Each holds D - base as uint16 (2**adc_bits x 2 bytes:
+        8 KiB at 12 bits), base centring the 65536 um window on the curve's two ends, with no
+        scratch arrays (a board's heap is small). A curve that leaves its window is evaluated
+        per step instead."""
         n = self.st[LAST_CODE] + 1
-        t1 = array("H", range(n))  # no throw-away list (portable.zeros)
-        t2 = array("H", range(n))
-        base1 = (self._d1_at(0) + self._d1_at(n - 1)) // 2 - 32768
-        base2 = (self._d2_at(0) + self._d2_at(n - 1)) // 2 - 32768
+        conv1, conv2, k1, k2, k_df = self.conv1, self.conv2, self.k1, self.k2, self.k_df
+        t1 = t2 = None
+        if tabulate:
+            t1 = array("H", range(n))  # no throw-away list (portable.zeros)
+            t2 = array("H", range(n))
+            base1 = (self._d1(conv1(0, k1)) + self._d1(conv1(n - 1, k1))) // 2 - 32768
+            base2 = (_clamp_um(conv2(0, k2)) + _clamp_um(conv2(n - 1, k2))) // 2 - 32768
+        first1 = prev1 = conv1(0, k1)
+        first2 = prev2 = conv2(0, k2)
         code = 0
         while code < n:
-            v1 = self._d1_at(code) - base1
-            v2 = self._d2_at(code) - base2
-            if not (0 <= v1 <= 65535 and 0 <= v2 <= 65535):
-                return
-            t1[code] = v1
-            t2[code] = v2
+            r1 = conv1(code, k1)
+            r2 = conv2(code, k2)
+            if r1 < prev1 or r2 < prev2:  # (no tuple per code: boot must not fragment the heap)
+                name, v, prev = ("pot1", r1, prev1) if r1 < prev1 else ("pot2", r2, prev2)
+                raise ValueError("%s's curve falls at code %d (%d um after %d): positions must grow with the code"
+                                 % (name, code, v, prev))
+            prev1 = r1
+            prev2 = r2
+            if t1 is not None:
+                v1 = self._d1(r1) - base1
+                v2 = _clamp_um(r2) - base2
+                if 0 <= v1 <= 65535 and 0 <= v2 <= 65535:
+                    t1[code] = v1
+                    t2[code] = v2
+                else:
+                    t1 = t2 = None  # out of the window: keep checking, evaluate per step
             code += 1
-        self.t1 = t1
-        self.t2 = t2
-        st = self.st
-        st[BASE1] = base1
-        st[BASE2] = base2
-        st[TABLES] = 1
+        for name, first, last in (("pot1", first1, prev1), ("pot2", first2, prev2)):
+            if last <= first:
+                raise ValueError("%s's curve does not rise over the ADC's codes" % name)
+        if t1 is not None:
+            self.t1 = t1
+            self.t2 = t2
+            st = self.st
+            st[BASE1] = base1
+            st[BASE2] = base2
+            st[TABLES] = 1
 
-    def _d1_at(self, code):
-        d1 = _clamp_um(self.conv1(code, self.k1))
+    def _d1(self, raw_um):
+        """D1* from pot 1's curve value: clamped, less the Df correction when calibrated."""
+        d1 = _clamp_um(raw_um)
         if self.k_df is not None:
             d1 = _clamp_um(d1 - poly(d1, self.k_df))
         return d1
-
-    def _d2_at(self, code):
-        return _clamp_um(self.conv2(code, self.k2))
 
     @property
     def d1(self):
@@ -227,7 +229,7 @@ class Measurement:
             # ptr16 loads zero-extend on every port, and the entries are never negative
             d1 = int(ptr16(self.t1)[raw1]) + (((s[BASE1] + _B29) & _M30) - _B29)
             d2 = int(ptr16(self.t2)[raw2]) + (((s[BASE2] + _B29) & _M30) - _B29)
-        else:  # what _tabulate() stores, evaluated now
+        else:  # what _scan() tabulates, evaluated now
             d1 = int(self.conv1(raw1, self.k1))
             if d1 > STROKE_CLAMP_UM:
                 d1 = STROKE_CLAMP_UM
