@@ -4,9 +4,10 @@
 model F0(d) (um -> mN) and its inverse d(F0) (mN -> um). The input is clamped to the declared
 range and centred (u = x - XC) so that |u| is as small as the range allows. Each Horner
 accumulator r_j = a_j + u * r_(j+1) is held as R_j = round(r_j * 2**E_j) with its own exponent
-E_j, chosen by the host so that |R_j| <= 2**29 and |R_(j+1) * u| <= 2**29 over the whole input
-range (host/fixed_export.py proves it from the coefficients and checks it by instrumentation);
-every A_j, XC, XLO and XHI is within [-2**29, 2**29).
+E_j, chosen by the host so that |R_(j+1)| * max(256, |uh|) <= 2**29 over the whole input range;
+every A_j, XC, XLO and XHI is within [-2**29, 2**29). `invalid(k)` proves those bounds from the
+words alone (interval arithmetic, below), so the board refuses any polynomial that could leave
+31 bits for some input, whoever wrote it; the host exports only polynomials it accepts.
 The product R_(j+1) * u is taken in halves, u = uh * 2**8 + ul with 0 <= ul < 256, and
 recombined with nested floors, exactly floor((R u + 2**(SH-1)) / 2**SH) for SH >= 8, so R only
 has to satisfy |R| * max(256, |uh|) <= 2**29: about 21 bits for a 60 mm range in um, where a
@@ -64,6 +65,52 @@ def poly(x: int, kk) -> int:
     return (r + ((1 << e) >> 1)) >> e
 
 
+_PIECES = const(32)  # input pieces of the proof: more are tighter and slower (it runs once, at boot)
+
+
+def _horner_step(r, u, sh, a):
+    """One step of `poly` in plain integers, the same expression: a + floor((r u + 2**(sh-1)) / 2**sh)."""
+    return a + ((r * (u >> 8) + ((r * (u & 255) + ((1 << sh) >> 1)) >> 8)) >> (sh - 8))
+
+
+def overflow(k):
+    """Why `poly(x, k)` could leave 31 bits for some input x (a string), or None when it cannot.
+
+    The proof: split the inputs the evaluator can see (it clamps x to [XLO, XHI]) into pieces
+    [ua, ub] of u = x - XC, and carry an interval [lo, hi] holding every accumulator R_j of the
+    piece. A step maps R to A + floor((R u + 2**(SH-1)) / 2**SH), which grows with the product R u,
+    and a product over a box takes its extremes at the corners, so the step's four corner values
+    bound the next R; before each step |R| * max(256, |uh|) <= 2**29 is required, which keeps every
+    intermediate of the step (r * uh, r * ul + 2**(SH-1), their sums) within 2**30, and the
+    final rounding must stay below 2**30. Every value here is within 2**30 too, so the proof
+    itself runs in small ints. The layout must already have passed the range checks of `invalid`.
+    """
+    n = k[0]
+    ulo = k[2] - k[1]
+    span = k[3] - k[2]
+    pieces = min(_PIECES, span) or 1
+    step = span // pieces
+    for p in range(pieces):
+        ua = ulo + step * p
+        ub = ulo + span if p == pieces - 1 else ua + step
+        mult = max(256, abs(ua >> 8), abs(ub >> 8))
+        lo = hi = k[5]
+        for j in range(n):
+            if max(-lo, hi) > _B29 // mult:
+                return "Horner step %d can exceed 31 bits for inputs %d..%d" % (n - j, ua + k[1], ub + k[1])
+            sh = k[6 + 2 * j]
+            a = k[7 + 2 * j]
+            c1 = _horner_step(lo, ua, sh, a)
+            c2 = _horner_step(lo, ub, sh, a)
+            c3 = _horner_step(hi, ua, sh, a)
+            c4 = _horner_step(hi, ub, sh, a)
+            lo = min(c1, c2, c3, c4)
+            hi = max(c1, c2, c3, c4)
+        if max(-lo, hi) >= 2 * _B29 - ((1 << k[4]) >> 1):
+            return "polynomial output can exceed 31 bits for inputs %d..%d" % (ua + k[1], ub + k[1])
+    return None
+
+
 def invalid(k):
     """Why `k` cannot be a poly constant set (a string), or None: the layout's limits, among them
     every word the evaluator sign-fixes within [-2**29, 2**29). The calibration loader uses it."""
@@ -80,4 +127,4 @@ def invalid(k):
     for i in [1, 2, 3, 5] + list(range(7, len(k), 2)):
         if not -_B29 <= k[i] < _B29:
             return "coefficient or range beyond 2**29"
-    return None
+    return overflow(k)

@@ -282,6 +282,23 @@ def export_pot(fit, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
 # ---------------------------------------------------------------- polynomials
 
 
+def _poly_words(q, n, xc, xlo, xhi, lim):
+    """The poly_fixed layout of q(u) (lowest first, degree n) with accumulator exponents at most `lim`."""
+    e = [0] * (n + 1)
+    e[n] = lim[n]
+    for j in range(n - 1, -1, -1):
+        e[j] = min(lim[j], e[j + 1] - 8)
+    e[0] = min(e[0], 30)  # E0 in 0..30 (a zero polynomial has no limit of its own)
+    for j in range(n):
+        e[j + 1] = min(e[j + 1], e[j] + 30)  # SH_j in 8..30
+    if e[0] < 0:
+        raise ValueError("polynomial output beyond 2**29 output units over the input range")
+    k = [n, xc, xlo, xhi, e[0], round(q[n] * 2.0 ** e[n])]
+    for j in range(n - 1, -1, -1):
+        k += [e[j + 1] - e[j], round(q[j] * 2.0 ** e[j])]
+    return k
+
+
 def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=None):
     """k for `firmware.poly_fixed.poly` evaluating out_scale * P(x / in_scale) on integer x.
 
@@ -327,22 +344,20 @@ def export_poly(coeffs_high_first, x_min, x_max, in_scale, out_scale, max_error=
         if mj * 2.0**lj >= 2**29:  # keep |R_j| < 2**29 strictly (the firmware's sign fix)
             lj -= 1
         lim.append(lj)
-    e = [0] * (n + 1)
-    e[n] = lim[n]
-    for j in range(n - 1, -1, -1):
-        e[j] = min(lim[j], e[j + 1] - 8)
-    e[0] = min(e[0], 30)  # E0 in 0..30 (a zero polynomial has no limit of its own)
-    for j in range(n):
-        e[j + 1] = min(e[j + 1], e[j] + 30)  # SH_j in 8..30
-    if e[0] < 0:
-        raise ValueError("polynomial output beyond 2**29 output units over the input range")
-    k = [n, xc, xlo, xhi, e[0], round(q[n] * 2.0 ** e[n])]
-    for j in range(n - 1, -1, -1):
-        k += [e[j + 1] - e[j], round(q[j] * 2.0 ** e[j])]
+    # the board accepts a polynomial only when firmware.poly_fixed.overflow proves its 31-bit
+    # bounds from the words; that proof is a little looser than the maxima above, so when it
+    # fails every exponent gives up one bit and the proof is tried again
+    for backoff in range(8):
+        k = _poly_words(q, n, xc, xlo, xhi, [lj - backoff for lj in lim])
+        why = poly_fixed.invalid(k)
+        if why is None:
+            break
+    else:
+        raise ValueError("polynomial cannot be proved to stay within 31 bits: %s" % why)
     if inputs is None:
         inputs = np.unique(np.linspace(xlo, xhi, 200001).round())
     reference = np.polyval(a, inputs / in_scale) * out_scale
     bound = max(1.0, 2.0**-13 * float(np.max(np.abs(reference)))) if max_error is None else float(max_error)
-    # the bound analysis above is the proof; instrumenting 4,001 inputs (ends included) checks it
+    # the board relies on the proof above; instrumenting 4,001 inputs (ends included) checks it again
     tracked = inputs if len(inputs) <= 4001 else np.unique(np.linspace(xlo, xhi, 4001).round())
     return _finish("poly", k, poly_fixed.poly, inputs, reference, bound, "polynomial", tracked)

@@ -150,6 +150,8 @@ def raw_document(body, schema=1, crc=None):
         (lambda b: (dict(b, pot2=dict(b["pot2"], fixed=[2, 4, 0, 60000, 0, 60000])), 1, None), "31 bits"),
         (lambda b: (dict(b, df=dict(b["df"], fixed=b["df"]["fixed"][:-2])), 1, None), "degree"),
         (lambda b: (dict(b, df=dict(b["df"], fixed=[1, 0, 0, 1, 0, 1, 3, 1])), 1, None), "Horner shift"),
+        # every word within range, but R_1 = 2**28 u / 2**8 leaves 31 bits (tests/test_poly_fixed.py)
+        (lambda b: (dict(b, force=dict(kind="poly", fixed=[2, 0, -30000, 30000, 0, 2**28, 8, 0, 8, 0])), 1, None), "force: Horner step 2 can exceed 31 bits"),
         (lambda b: (dict(b, pot1=dict(b["pot1"], fixed=[2**31] + b["pot1"]["fixed"][1:])), 1, None), "within 2\\*\\*30"),
     ],
 )
