@@ -19,6 +19,8 @@ from host.frames import FrameDecoder
 from host.telemetry_log import load, record
 from host.virtual_board import VirtualBoard
 
+import host_processes
+
 MPREMOTE = str(__import__("pathlib").Path(sys.executable).parent / "mpremote")
 
 
@@ -267,17 +269,15 @@ def test_mpremote_reset_boots_the_firmware_like_a_hard_reset(vboard):
 
 
 def test_host_sim_prints_a_port_that_answers_and_stops_on_ctrl_c():
-    import signal
-
-    proc = subprocess.Popen([sys.executable, "-m", "host", "sim"], stdout=subprocess.PIPE, text=True)
+    proc = host_processes.start("sim", stdout=subprocess.PIPE, text=True)
     try:
         path = proc.stdout.readline().strip()
         assert path.startswith("/dev/pts/")
         with BoardClient(path) as board:
             assert board.status_info["board"] == "sim"
     finally:
-        proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=60) == 0  # a deadline: a loaded machine may take seconds
+        code, _, _ = host_processes.stop(proc)  # a deadline: a loaded machine may take seconds
+    assert code == 0
 
 
 def processes_mentioning(text):
@@ -297,7 +297,7 @@ def test_host_sim_cleans_up_on_sigterm_and_sighup_as_on_ctrl_c(stop_signal):
     import signal
     from pathlib import Path
 
-    proc = subprocess.Popen([sys.executable, "-m", "host", "sim", "--load", "gauge@25"], stdout=subprocess.PIPE, text=True)
+    proc = host_processes.start("sim", "--load", "gauge@25", stdout=subprocess.PIPE, text=True)
     try:
         path = proc.stdout.readline().strip()
         root = proc.stdout.readline().split("(flash in ")[1].split(")")[0]
@@ -307,8 +307,7 @@ def test_host_sim_cleans_up_on_sigterm_and_sighup_as_on_ctrl_c(stop_signal):
             assert board.status_info["board"] == "sim"
         assert processes_mentioning(root)  # its micropython runs
     finally:
-        proc.send_signal(getattr(signal, stop_signal))
-        code = proc.wait(timeout=60)
+        code, _, _ = host_processes.stop(proc, getattr(signal, stop_signal))
     assert code == 0
     assert not Path(root).exists()  # the temporary flash directory is gone ...
     assert processes_mentioning(root) == []  # ... and so is micropython
@@ -321,17 +320,14 @@ def test_port_sim_runs_a_command_on_a_throwaway_board(capsys):
 
 
 def test_log_ctrl_c_ends_with_a_complete_file_and_a_summary(vboard, tmp_path):
-    import signal
-
     out = tmp_path / "interrupted.csv"
-    proc = subprocess.Popen([sys.executable, "-m", "host", "log", "--port", vboard.path, "--out", str(out), "--rate", "500"],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    proc = host_processes.start("log", "--port", vboard.path, "--out", str(out), "--rate", "500",
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     deadline = time.monotonic() + 20
     while time.monotonic() < deadline and (not out.exists() or out.stat().st_size < 20000):
         time.sleep(0.1)
-    proc.send_signal(signal.SIGINT)
-    stdout, _ = proc.communicate(timeout=60)
-    assert proc.returncode == 0 and "(interrupted)" in stdout and "lost frames 0" in stdout
+    code, stdout, _ = host_processes.stop(proc)
+    assert code == 0 and "(interrupted)" in stdout and "lost frames 0" in stdout
     lines = out.read_text().splitlines()
     assert lines[0].split(",") == list(P.FIELDS)
     assert all(len(line.split(",")) == len(P.FIELDS) for line in lines[1:])  # no torn last row
