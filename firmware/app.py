@@ -8,6 +8,7 @@ reset is readable afterwards. Without a usable calibration, raw readings and ope
 work; closed-loop modes are refused with the reason, and status() shows it.
 """
 
+import sys
 from array import array
 
 from firmware import hal
@@ -28,6 +29,7 @@ from firmware.motor import Motor
 from firmware.pi_control import DUTY_MAX
 from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
 from firmware.sampler import Sampler
+from firmware import saved_params
 from firmware.telemetry import Ring
 
 VERSION = "0.1.0"
@@ -57,6 +59,14 @@ def _read_exit(path):
     return text or None
 
 
+def _interpreter():
+    """("micropython 1.29.0", mpy version word or None): what runs the firmware, for bringup's
+    check that the .mpy files match it (sys.implementation._mpy: version, sub-version, arch)."""
+    impl = sys.implementation
+    v = impl.version
+    return "%s %d.%d.%d" % (impl.name, v[0], v[1], v[2]), getattr(impl, "_mpy", None)
+
+
 def _load_calibration(path):
     """(calibration, None) or (None, reason)."""
     if path is None:
@@ -80,7 +90,7 @@ def _load_calibration(path):
 
 
 class App:
-    def __init__(self, board_path, calibration_path, machine=None, ring_records=128, exit_path=None):
+    def __init__(self, board_path, calibration_path, machine=None, ring_records=128, exit_path=None, params_path=None):
         self.board = load_board(board_path)
         self.machine = hal.get_machine(self.board, machine)
         # The motor first, so that whatever fails later at boot, the bridge is already off.
@@ -95,7 +105,14 @@ class App:
         if cal is not None:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
-        # What every parameter is at boot: a host that goes silent gets them back (watch_host)
+        self.params_path = params_path
+        saved, self.params_file_error = saved_params.load(params_path, PARAMS)
+        self.params_from_file = bool(saved)
+        for i in saved:
+            self.ctrl.p[i] = saved[i]
+        self.ctrl.apply_params()
+        # What every parameter is at boot (the saved values, else the table's defaults): a host
+        # that goes silent gets them back (watch_host)
         self.boot_params = array("i", self.ctrl.p)
         self.params_restored = None
         self._timer = None
@@ -103,6 +120,7 @@ class App:
         self._quit = False
         self.exit_path = exit_path
         self.last_exit = _read_exit(exit_path)  # why the previous run() ended (this boot's or the last)
+        self.interpreter, self.mpy = _interpreter()
 
     def set_calibration(self, cal):
         """Use a loaded Calibration (or None for raw readings only). Goes idle first."""
@@ -150,8 +168,12 @@ class App:
             "period_us": self.ctrl.period_us,
             "stroke_um": [self.ctrl.p[P_STROKE_MIN], self.ctrl.p[P_STROKE_MAX]],
             "params_changed": self.params_changed(),
+            "params_saved": self.params_saved(),
+            "params_file_error": self.params_file_error,
             "params_restored": self.params_restored,
             "timer": self.timer_kind,
+            "interpreter": self.interpreter,
+            "mpy": self.mpy,
             "last_exit": self.last_exit,
         }
 
@@ -222,7 +244,33 @@ class App:
         c.target = value
 
     def params(self):
-        return [name for name, _, _, _ in PARAMS]
+        """The parameter table with the values in force: [name, value, default, min, max, unit]."""
+        p = self.ctrl.p
+        return [[row[0], p[i], row[1], row[2], row[3], row[4]] for i, row in enumerate(PARAMS)]
+
+    def params_saved(self):
+        """{name: value} the board booted with that differ from the table's defaults; None when
+        no saved parameters were loaded."""
+        if not self.params_from_file:
+            return None
+        b = self.boot_params
+        return dict((row[0], b[i]) for i, row in enumerate(PARAMS) if b[i] != row[1])
+
+    def save_params(self):
+        """Keep the parameters in force on the board (loaded at the next boot). Idle only: a
+        flash write may hold up the control step."""
+        if self.params_path is None:
+            raise ValueError("this board has no file for saved parameters")
+        if self.ctrl.mode != IDLE:
+            raise ValueError("stop first: parameters are saved only while idle")
+        self.safety.heard()
+        saved_params.save(self.params_path, PARAMS, self.ctrl.p)
+        self.params_file_error = None
+        self.params_from_file = True
+        p = self.ctrl.p
+        for i in range(len(p)):
+            self.boot_params[i] = p[i]  # what the watchdog restores from now on
+        return {"file": self.params_path, "saved": self.params_saved()}
 
     def _param_index(self, name):
         for i, row in enumerate(PARAMS):
@@ -237,7 +285,7 @@ class App:
     def set_param(self, name, value):
         i = self._param_index(name)
         value = int(value)
-        _, _, lo, hi = PARAMS[i]
+        lo, hi = PARAMS[i][2], PARAMS[i][3]
         if not lo <= value <= hi:
             raise ValueError("%s must be within %d..%d" % (name, lo, hi))
         self.safety.heard()

@@ -9,7 +9,8 @@ Before the App loads the calibration, a calibration left aside by an interrupted
 back (recover_calibration). The motor is off on every way out (normal return, Ctrl-C from mpremote, any exception): App.run
 promises it, and `run` stops the App again in `finally` in case construction or the link failed.
 App.run records why it ended in `last_exit.txt` (beside main.py); the next boot reads it back
-into status()["last_exit"].
+into status()["last_exit"]. Parameters kept with the `save` command live in `params.txt`
+(firmware/saved_params.py) and are loaded at boot.
 """
 
 import os
@@ -33,13 +34,14 @@ def recover_calibration(path):
         os.rename(old, path)
 
 
-def run(board_path="board.json", calibration_path="calibration.json", machine=None, exit_path="last_exit.txt"):
+def run(board_path="board.json", calibration_path="calibration.json", machine=None, exit_path="last_exit.txt",
+        params_path="params.txt"):
     from firmware.app import App
 
     app = None
     try:
         recover_calibration(calibration_path)
-        app = App(board_path, calibration_path, machine=machine, exit_path=exit_path)
+        app = App(board_path, calibration_path, machine=machine, exit_path=exit_path, params_path=params_path)
         link = Link(app)
         link.hello()
         app.run(link)

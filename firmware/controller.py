@@ -45,21 +45,21 @@ P_STROKE_MIN = const(10)
 P_STROKE_MAX = const(11)
 P_SLOW_ZONE = const(12)
 P_DEFL_RATE = const(13)
-PARAMS = (
-    ("kp_pos", 768, 0, GAIN_MAX),  # Q8 duty per um of position error
-    ("ki_pos", 16, 0, GAIN_MAX),  # Q8 duty per um per step, into the Q8 integral
-    ("kp_force", 2560, 0, GAIN_MAX),  # Q8 duty per um of deformation error
-    ("ki_force", 8192, 0, GAIN_MAX),
-    ("out_limit", 8000, 0, DUTY_MAX),  # |PI output| limit, duty
-    ("int_limit", 6000, 0, DUTY_MAX),  # |integral| limit, duty
-    ("slew", 500, 0, DUTY_MAX),  # max duty change per step (0 = unlimited)
-    ("host_timeout_ms", 1000, 0, 600000),  # host silence that stops the motor (0 = off)
-    ("rail_reads", 4, 1, 1000),  # consecutive reads at a rail that make a fault
-    ("rail_margin", 0, 0, 255),  # codes from the rail that count as "at the rail"
-    ("stroke_min_um", 500, -65535, 65535),  # soft stroke limits on D1* and D2
-    ("stroke_max_um", 59500, -65535, 65535),
-    ("slow_zone_um", 5000, 1, 65535),  # |duty| toward a limit is capped, falling to 0 over this
-    ("defl_rate_um", 2, 0, 65535),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
+PARAMS = (  # name, default, min, max, unit (what `host params` shows; the comment says more)
+    ("kp_pos", 768, 0, GAIN_MAX, "duty/256 per um"),  # Q8 duty per um of position error
+    ("ki_pos", 16, 0, GAIN_MAX, "duty/256 per um per step"),  # into the Q8 integral
+    ("kp_force", 2560, 0, GAIN_MAX, "duty/256 per um"),  # per um of deformation error
+    ("ki_force", 8192, 0, GAIN_MAX, "duty/256 per um per step"),
+    ("out_limit", 8000, 0, DUTY_MAX, "duty"),  # |PI output| limit (duty 10000 = 100 %)
+    ("int_limit", 6000, 0, DUTY_MAX, "duty"),  # |integral| limit
+    ("slew", 500, 0, DUTY_MAX, "duty per step"),  # max duty change per step (0 = unlimited)
+    ("host_timeout_ms", 1000, 0, 600000, "ms"),  # host silence that stops the motor (0 = off)
+    ("rail_reads", 4, 1, 1000, "reads"),  # consecutive reads at a rail that make a fault
+    ("rail_margin", 0, 0, 255, "codes"),  # codes from the rail that count as "at the rail"
+    ("stroke_min_um", 500, -65535, 65535, "um"),  # soft stroke limits on D1* and D2
+    ("stroke_max_um", 59500, -65535, 65535, "um"),
+    ("slow_zone_um", 5000, 1, 65535, "um"),  # |duty| toward a limit is capped, falling to 0 over this
+    ("defl_rate_um", 2, 0, 65535, "um per step"),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
 )
 _MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
 
@@ -142,7 +142,7 @@ class Controller:
         self.ring = ring
         self.safety = safety
         self.pi = PI()
-        self.p = array("i", [d for _, d, _, _ in PARAMS])
+        self.p = array("i", [row[1] for row in PARAMS])
         self.st[PERIOD] = 1000000 // loop_hz
         self.rec = zeros(12)  # the step's telemetry record, handed to the ring
         self._ticks = ticks_us

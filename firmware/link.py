@@ -184,7 +184,9 @@ class Link:
             app.set_param(args[0], P.parse_int(args[1]))
             return None
         if name == "params":
-            return list(app.params())
+            return app.params()
+        if name == "save":
+            return app.save_params()
         if name == "heartbeat":
             app.heartbeat()
             return None

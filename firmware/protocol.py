@@ -57,7 +57,8 @@ TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
 # arguments must fit +-2**30 (the board's small-int range).
 COMMANDS = (
     ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
-     "step_us_max, overruns, period_us, stroke_um, params_changed, params_restored, timer, last_exit, protocol",
+     "step_us_max, overruns, period_us, stroke_um, params_changed, params_saved, params_file_error, params_restored, "
+     "timer, interpreter, mpy, last_exit, protocol",
      "identify the firmware and report its state (the handshake)"),
     ("stop", (), "null", "motor off, mode idle"),
     ("mode", ("name",), "null", "switch mode: idle, open_loop, position or force"),
@@ -66,7 +67,10 @@ COMMANDS = (
     ("stream", ("on/off", "[hz:int]"), "object: hz", "start telemetry at hz (default 1000) or stop it"),
     ("get", ("param",), "int", "read a controller parameter"),
     ("set", ("param", "value:int"), "null", "write a controller parameter"),
-    ("params", (), "list of names", "the parameters `get`/`set` accept"),
+    ("params", (), "list of [name, value, default, min, max, unit]",
+     "the parameters `get`/`set` accept, with the values in force and their table"),
+    ("save", (), "object: file, saved (names that differ from the defaults)",
+     "keep the parameters in force on the board's filesystem; loaded at the next boot (idle only)"),
     ("heartbeat", (), "null", "keep-alive: the firmware stops the motor when heartbeats stop"),
     ("reset", (), "null", "clear latched faults, motor off, mode idle (after the reply is sent)"),
 )

@@ -1,4 +1,5 @@
-"""Render docs/protocol.md from firmware/protocol.py (commands, frame types, telemetry fields).
+"""Render docs/protocol.md from firmware/protocol.py (commands, frame types, telemetry fields) and
+the parameter table of firmware/controller.py.
 
 `python -m host.protocol_doc` rewrites the file; tests/test_protocol_doc.py fails when the file
 is not what this renders, so the document can never drift from the code.
@@ -47,6 +48,20 @@ def render():
     ]
     for name, args, result, what in P.COMMANDS:
         out.append("| `%s` | %s | %s | %s |" % (name, " ".join("`%s`" % a for a in args) or "-", result, what))
+    from firmware.controller import PARAMS
+
+    out += [
+        "",
+        "## Parameters (`get`, `set`, `params`, `save`)",
+        "",
+        "From `firmware/controller.py` PARAMS. `set` refuses a value outside its limits; `save` keeps",
+        "the values in force in `params.txt` on the board, loaded at boot (`host params --save`).",
+        "",
+        "| name | default | limits | unit |",
+        "|---|---|---|---|",
+    ]
+    for name, default, lo, hi, unit in PARAMS:
+        out.append("| `%s` | %d | %d..%d | %s |" % (name, default, lo, hi, unit))
     out += [
         "",
         "## Board -> host: frames",

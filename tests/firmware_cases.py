@@ -21,7 +21,7 @@ except ImportError:
 MODULES = (
     "portable", "hal", "board_config", "sampler", "bcm_fixed", "pwl_fixed", "poly_fixed",
     "calibration", "measurement", "pi_control", "motor", "safety", "telemetry", "controller",
-    "protocol", "link", "app", "board_main",
+    "protocol", "link", "saved_params", "app", "board_main",
 )
 
 
@@ -575,7 +575,7 @@ def case_range_checks(path):
     refuse(app.set_target, -10001)
     app.set_mode("force")
     refuse(app.set_target, 200001)
-    for name, default, lo, hi in PARAMS:
+    for name, default, lo, hi, _ in PARAMS:
         refuse(app.set_param, name, lo - 1)
         refuse(app.set_param, name, hi + 1)
         assert app.get_param(name) == default, name

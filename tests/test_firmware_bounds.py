@@ -99,7 +99,7 @@ def instrumented():
 def _extreme_params(app):
     from firmware.controller import PARAMS
 
-    for name, _, lo, hi in PARAMS:
+    for name, _, lo, hi, _ in PARAMS:
         if name.startswith(("kp_", "ki_", "out_limit", "int_limit", "slew")):
             app.set_param(name, hi)
 

@@ -132,7 +132,7 @@ def test_commands_reach_the_app():
     assert [f.type for f in frames[:6]] == [P.T_OK] * 6
     assert app.ctrl.target == 1234 and frames[3].json() == 77
     assert app.telemetry.every == 4 and frames[4].json() == {"hz": 250}
-    assert "slew" in frames[5].json()
+    assert ["slew", 77, 500, 0, 10000, "duty per step"] in frames[5].json()  # name, value, default, limits, unit
     assert frames[6].type == P.T_ERROR and "calibration" in frames[6].text()  # no calibration: refused, not crashed
 
 

@@ -18,12 +18,16 @@ LABELS = (
     ("duty", "duty (of 10000)"),
     ("stroke_um", "soft stroke limits (um)"),
     ("params_changed", "parameters changed since boot"),
+    ("params_saved", "saved parameters (boot values)"),
+    ("params_file_error", "saved parameters problem"),
     ("params_restored", "parameters restored"),
     ("steps", "steps since boot (mod 2**30)"),
     ("period_us", "loop period (us)"),
     ("step_us_max", "longest step (us)"),
     ("overruns", "overruns"),
     ("timer", "loop timer"),
+    ("interpreter", "interpreter"),
+    ("mpy", ".mpy version word"),
     ("last_exit", "last exit"),
 )
 
@@ -57,6 +61,8 @@ def describe(status):
             value = "%s .. %s" % tuple(value)
         elif key == "params_changed":
             value = ", ".join(value) if value else "none"
+        elif key == "params_saved" and value is not None:
+            value = ", ".join("%s=%d" % kv for kv in sorted(value.items())) or "all defaults"
         if value is None:
             value = "none"
         lines.append("%-30s %s" % (label, value))

@@ -1,0 +1,119 @@
+"""`host params`: list, read and set the firmware's controller parameters, and keep them on the board.
+
+Names, units, defaults and limits come from the board's own table (the `params` command), so
+the host never carries a second copy that could disagree with the firmware it talks to.
+"""
+
+import json
+
+from host.board_client import add_port_arguments, open_board
+from host.errors import UserError
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "params", help="list, read or set the firmware's parameters (gains, limits, timeouts); --save keeps them",
+        description="Without arguments: every parameter with its value, unit, default and limits. NAME: one value. "
+        "NAME=VALUE ...: set them (checked against the board's limits first; nothing is set if one is wrong). "
+        "Values set without --save last until the board restarts, or until the host goes silent while the motor "
+        "runs (the watchdog then restores the boot values). --save keeps the values in force on the board "
+        "(params.txt, loaded at boot; `host status` shows them).")
+    p.add_argument("items", nargs="*", metavar="NAME[=VALUE]", help="a parameter to read, or NAME=VALUE to set")
+    p.add_argument("--defaults", action="store_true", help="set every parameter back to the firmware's default first")
+    p.add_argument("--save", action="store_true", help="keep the values in force on the board (loaded at boot)")
+    p.add_argument("--json", action="store_true", help="print the table as JSON")
+    add_port_arguments(p)
+    p.set_defaults(func=run)
+
+
+class Param:
+    """One row of the board's parameter table."""
+
+    def __init__(self, row):
+        self.name, self.value, self.default, self.lo, self.hi, self.unit = row
+
+    def as_dict(self):
+        return {"name": self.name, "value": self.value, "default": self.default, "min": self.lo, "max": self.hi,
+                "unit": self.unit}
+
+
+def read_table(board):
+    """{name: Param} in the board's order."""
+    return {row[0]: Param(row) for row in board.call("params")}
+
+
+def parse_items(items, table):
+    """(names to read, [(name, value)] to set) from NAME and NAME=VALUE words, checked against
+    the table; UserError names the first bad word."""
+    reads, sets = [], []
+    for item in items:
+        name, eq, text = item.partition("=")
+        if name not in table:
+            raise UserError("unknown parameter %r (host params lists them: %s)" % (name, ", ".join(table)))
+        if not eq:
+            reads.append(name)
+            continue
+        try:
+            value = int(text.strip())
+        except ValueError:
+            raise UserError("%s=%s: the value must be a whole number (in %s)" % (name, text, table[name].unit)) from None
+        p = table[name]
+        if not p.lo <= value <= p.hi:
+            raise UserError("%s=%d is outside the firmware's limits %d..%d %s" % (name, value, p.lo, p.hi, p.unit))
+        sets.append((name, value))
+    return reads, sets
+
+
+def describe(table, saved=None):
+    """The table as aligned lines for a person; `saved` ({name: value} or None) marks saved values."""
+    saved = saved or {}
+    lines = ["%-16s %9s  %-26s %9s  %s" % ("name", "value", "unit", "default", "limits")]
+    for p in table.values():
+        note = []
+        if p.value != p.default:
+            note.append("changed")
+        if p.name in saved:
+            note.append("saved %d" % saved[p.name])
+        lines.append("%-16s %9d  %-26s %9d  %d..%d%s" % (
+            p.name, p.value, p.unit, p.default, p.lo, p.hi, ("  (" + ", ".join(note) + ")") if note else ""))
+    return lines
+
+
+def run(args):
+    with open_board(args.port, args.board, args.calibration, args.load) as board:
+        table = read_table(board)
+        reads, sets = parse_items(args.items, table)  # all checked before anything is set
+        if args.defaults:
+            sets = [(p.name, p.default) for p in table.values()] + sets
+        for name, value in sets:
+            board.call("set", name, value)
+        if sets:
+            table = read_table(board)
+        saved_result = board.call("save") if args.save else None
+        status = board.call("status")
+    if reads:
+        values = {name: table[name].value for name in reads}
+        if args.json:
+            print(json.dumps(values))
+        else:
+            for name in reads:
+                print("%s %d %s" % (name, table[name].value, table[name].unit))
+        return 0
+    if args.json:
+        print(json.dumps({"params": [p.as_dict() for p in table.values()], "saved": status.get("params_saved"),
+                          "file_error": status.get("params_file_error")}, indent=1))
+        return 0
+    if not sets or args.save or args.defaults:
+        print("\n".join(describe(table, status.get("params_saved"))))
+    else:
+        for name, value in sets:
+            print("%s = %d %s" % (name, table[name].value, table[name].unit))
+    if status.get("params_file_error"):
+        print("saved parameters not loaded at boot: %s" % status["params_file_error"])
+    if saved_result is not None:
+        changed = saved_result.get("saved") or {}
+        print("saved on the board (%s, loaded at boot): %s" % (
+            saved_result.get("file"), ", ".join("%s=%d" % kv for kv in sorted(changed.items())) or "all defaults"))
+    elif sets:
+        print("not saved: these last until the board restarts (host params --save keeps them)")
+    return 0
