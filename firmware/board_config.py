@@ -32,6 +32,9 @@ def check_board(board):
     for pot in ("pot1", "pot2"):
         if pot not in board["adc_pins"]:
             raise BoardError("adc_pins has no %r" % pot)
+    invert = board.setdefault("pot_invert", [])
+    if not isinstance(invert, list) or any(p not in ("pot1", "pot2") for p in invert):
+        raise BoardError("pot_invert must be a list of pot1/pot2, not %r" % (invert,))
     need = DRIVER_PINS.get(board["driver"])
     if need is None:
         raise BoardError("driver must be two_pwm or pwm_dir, not %r" % board["driver"])

@@ -37,7 +37,9 @@ LO = const(9)  # a read <= LO or >= HI is at a rail
 HI = const(10)
 NEED = const(11)  # rail_reads
 HAS_REF = const(12)
-WORDS = const(13)
+FLIP1 = const(13)  # the pot's mean is XORed with this: full scale for a pot in "pot_invert", else 0
+FLIP2 = const(14)
+WORDS = const(15)
 
 
 class Sampler:
@@ -57,6 +59,11 @@ class Sampler:
         self.adc_ref = hal.adc(machine, ref) if ref is not None else None
         st[N] = self.oversample
         st[SHIFT] = self.shift
+        # "pot_invert": a pot whose reading falls as its part moves toward 60 mm is read as
+        # full - code (code ^ full for codes within 0..full), so every later stage sees it rise
+        invert = board.get("pot_invert") or ()
+        st[FLIP1] = self.full if "pot1" in invert else 0
+        st[FLIP2] = self.full if "pot2" in invert else 0
         self._margin = 0
         self.rail_reads = 4
         self.rail_margin = 0
@@ -178,8 +185,8 @@ class Sampler:
             i += 1
         s[RUN1] = run1 if run1 < need else need
         s[RUN2] = run2 if run2 < need else need
-        s[RAW1] = (s1 + (n >> 1)) // n
-        s[RAW2] = (s2 + (n >> 1)) // n
+        s[RAW1] = ((s1 + (n >> 1)) // n) ^ s[FLIP1]
+        s[RAW2] = ((s2 + (n >> 1)) // n) ^ s[FLIP2]
         if s[HAS_REF]:
             rr = self._read_ref
             t = 0

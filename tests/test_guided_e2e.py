@@ -31,7 +31,9 @@ def full_run(tmp_path_factory):
 
 def test_every_step_is_accepted_written_and_verified(full_run):
     out, accepted, said = full_run
-    assert list(accepted) == ["pots", "assembly", "force"]
+    # a first full run checks the wiring first (bringup), and records it beside the file
+    assert list(accepted) == ["bringup", "pots", "assembly", "force"]
+    assert json.loads(out.with_name(out.stem + ".bringup.json").read_text())["ok"]
     doc = read_calibration(out)  # CRC and every section checked by the firmware's own parser
     for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction"):
         assert doc[name] and doc[name]["fixed"], name

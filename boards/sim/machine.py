@@ -1,8 +1,14 @@
 """A module shaped like MicroPython's `machine`, backed by the simulated actuator.
 
 `configure(board, seed)` builds the world from a board dict (boards/sim.json). Pins are labels:
-ADC pins name the channels (board["adc_pins"]), motor pins the H-bridge inputs
-(board["motor_pins"]). The motor voltage follows the board's driver:
+an ADC pin's label names the sensor channel wired to it ("pot1" carries the nut's pot), motor
+pins the H-bridge inputs (board["motor_pins"]). How the actuator is wired is part of the plant,
+not of the board file: `actuator.wiring` can say that it is wired wrongly, as a first bench
+often is, and the firmware's board file then has to compensate (host calibrate bringup finds it):
+  "adc": {"pot1": "pot2", ...}    the pin labelled pot1 carries the block's pot (pots swapped)
+  "pot_reversed": ["pot1"]        pot 1's track ends swapped: its reading falls as the nut goes out
+  "motor_reversed": true          the motor leads swapped: positive voltage drives toward 0 mm
+The motor voltage follows the board's driver:
   two_pwm (DRV8833 IN1/IN2): V = supply * (duty_in1 - duty_in2) / 65535
   pwm_dir (TB6612 PWM + DIR): V = +-supply * duty / 65535, + when the dir pin is 1
 Time: `run_ticks(n)` advances physics one timer period and then fires the timer callback, n times
@@ -110,23 +116,26 @@ class Pin:
         return self.value(v)
 
 
+def _wiring():
+    return _board["actuator"].get("wiring") or {}
+
+
 class ADC:
     def __init__(self, pin, *args, **kwargs):
         label = _label(pin)
         world()
-        pins = _board["adc_pins"]
-        name = None
-        for channel, lab in pins.items():
-            if lab == label:
-                name = channel
-        if name is None or name not in CHANNELS:
+        wiring = _wiring()
+        name = (wiring.get("adc") or {}).get(label, label)
+        if name not in CHANNELS:
             raise ValueError("pin %r is not an ADC pin of board %s" % (label, _board["name"]))
         self.channel = name
         self._i = CHANNELS.index(name)
         self._w = _world
+        # a track wired end for end reads the complement: 65535 - v, exactly ~v in 16 bits
+        self._flip = 0xFFFF if name in (wiring.get("pot_reversed") or ()) else 0
 
     def read_u16(self):
-        return self._w.read_u16_index(self._i)
+        return self._w.read_u16_index(self._i) ^ self._flip
 
 
 class PWM:
@@ -198,6 +207,8 @@ def _duty(label):
 def motor_voltage():
     """Voltage across the motor from the present PWM duties and pin levels."""
     supply = float(_board["supply_volts"])
+    if _wiring().get("motor_reversed"):
+        supply = -supply
     mp = _board["motor_pins"]
     if _board["driver"] == "two_pwm":
         return supply * (_duty(mp["in1"]) - _duty(mp["in2"])) / 65535.0

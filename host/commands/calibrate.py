@@ -3,7 +3,7 @@
 from pathlib import Path
 
 from host.errors import UserError
-from host.guided.flow import STEPS, Options, run_steps
+from host.guided.flow import BRINGUP, STEPS, Options, bringup_done, run_steps
 from host.numbers import ranged
 
 
@@ -17,7 +17,8 @@ def add_parser(subparsers):
         "sections are written atomically to the calibration file and flashed; the firmware must then "
         "report the file's CRC. With --port sim the rig is simulated (boards/sim/bench_rig.py).",
     )
-    p.add_argument("step", nargs="?", choices=STEPS + ("all",), default="all", help="one step, or all in order (default)")
+    p.add_argument("step", nargs="?", choices=(BRINGUP,) + STEPS + ("all",), default="all",
+                   help="one step, or all in order (default; bringup first unless it passed before on this board)")
     p.add_argument("--port", default="auto",
                    help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports; sim: boards/sim.json)")
@@ -37,6 +38,7 @@ def add_parser(subparsers):
     p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=5000, help="force: largest open-loop duty (default 5000: ~17 N)")
     p.add_argument("--anchor-mm", type=ranged(float, 0, 60), default=45.0, help="force: where the fibre goes taut, mm (default 45)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
+    p.add_argument("--fix", action="store_true", help="bringup: write and flash a corrected board file without asking")
     p.set_defaults(func=run)
 
 
@@ -116,7 +118,8 @@ def options_from(args):
         raise UserError("--duty must be within 100..6000")
     return Options(out=out, out_dir=plots, reference=args.reference, manual_points=args.manual_points,
                    duty=args.duty, anchor_mm=args.anchor_mm, rounds=max(1, args.rounds),
-                   levels=max(3, args.levels), max_duty=args.max_duty, flash=not args.no_flash, **method_options(args))
+                   levels=max(3, args.levels), max_duty=args.max_duty, flash=not args.no_flash, fix=args.fix,
+                   **method_options(args))
 
 
 def calibrate(args, say=print, ask=None):
@@ -126,12 +129,17 @@ def calibrate(args, say=print, ask=None):
     from host.guided.session import Session
 
     opts = options_from(args)
-    steps = STEPS if args.step == "all" else (args.step,)
+    steps = (BRINGUP,) + STEPS if args.step == "all" else (args.step,)
     prompter = Prompter(yes=args.yes, ask=ask, out=say)
     with Session(args.port, args.board, opts.out, say=say) as session:
         if args.yes and session.virtual is None and opts.reference == "manual":
             raise UserError("--yes with --reference manual: nobody to read the dial gauge")
-        if "pots" in steps and opts.reference == "adc":
+        if args.step == "all":
+            done = bringup_done(opts.out, session.board["name"])
+            if done:
+                steps = STEPS
+                say("bringup passed on %s (host calibrate bringup runs it again)" % done.get("date"))
+        if ("pots" in steps or BRINGUP in steps) and opts.reference == "adc":
             opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
         rig = make_rig(args, prompter, session)
         return run_steps(session, rig, prompter, steps, opts)

@@ -8,7 +8,14 @@ the file is flashed and the firmware must report its CRC before the next step st
 full run accepts new pot curves, the file's Df and force sections go with the old curves they
 were measured through (the backup keeps them); single steps update only their own sections.
 An interrupted or failed step leaves the file as the last accepted step left it.
+
+The bringup (host/guided/bringup.py: wiring, directions, pot assignment) is not a calibration
+section: its record goes beside the calibration file (calibration.bringup.json), and a full
+`host calibrate` runs it first unless that record says it passed on this board. Problems it
+finds stop the run before any sweep (under --yes) or after the person declines to go on.
 """
+
+import json
 
 import shutil
 import time
@@ -20,6 +27,7 @@ from host.errors import UserError
 from host.guided.checks import Limits
 
 STEPS = ("pots", "assembly", "force")
+BRINGUP = "bringup"
 
 
 @dataclass
@@ -44,6 +52,43 @@ class Options:
     settle_s: float = 0.5
     limits: Limits = field(default_factory=Limits)
     flash: bool = True
+    fix: bool = False  # bringup: write and flash a corrected board file without asking
+
+
+def bringup_record(path):
+    """Where the bringup record of calibration file `path` goes."""
+    path = Path(path)
+    return path.with_name(path.stem + ".bringup.json")
+
+
+def bringup_done(path, board_name):
+    """The record of a passed bringup on board `board_name` beside `path`, or None."""
+    try:
+        record = json.loads(bringup_record(path).read_text())
+    except (OSError, ValueError):
+        return None
+    return record if record.get("ok") and record.get("board") == board_name else None
+
+
+def run_bringup(session, rig, prompter, opts, alone):
+    """The bringup step: show, record, and decide whether the calibration may go on."""
+    from host.guided.bringup import calibrate_bringup
+
+    outcome = calibrate_bringup(session, rig, prompter, opts)
+    prompter.say("[bringup] results:")
+    for line in outcome.lines:
+        prompter.say("  " + line)
+    record = bringup_record(opts.out)
+    tmp = record.with_name(record.name + ".tmp")
+    tmp.write_text(json.dumps(outcome.sections["bringup"], indent=1) + "\n")
+    tmp.replace(record)
+    prompter.say("  recorded in %s" % record)
+    if outcome.ok:
+        return outcome
+    if alone or prompter.yes or not prompter.accept("Bringup found problems (above). Calibrate anyway?"):
+        raise UserError("bringup found %d problem(s): fix them (see above) and run host calibrate bringup again"
+                        % len(outcome.sections["bringup"]["problems"]))
+    return outcome
 
 
 def run_steps(session, rig, prompter, steps, opts):
@@ -54,6 +99,13 @@ def run_steps(session, rig, prompter, steps, opts):
 
     path = Path(opts.out)
     board_name = session.board["name"]
+    accepted = {}
+    if BRINGUP in steps:
+        steps = tuple(s for s in steps if s != BRINGUP)
+        accepted[BRINGUP] = run_bringup(session, rig, prompter, opts, alone=not steps)
+        board_name = session.board["name"]
+        if not steps:
+            return accepted
     full = tuple(steps) == STEPS
     if "pots" not in steps and not path.exists():
         raise UserError("%s does not exist: calibrate the pots first (host calibrate pots)" % path)
@@ -74,7 +126,6 @@ def run_steps(session, rig, prompter, steps, opts):
             if not full:  # a step updates the file's other sections: refuse before measuring
                 raise
             keep_previous()  # a full run replaces it all; the unreadable file is kept aside
-    accepted = {}
     for step in steps:
         if step == "pots":
             outcome = calibrate_pots(session, rig, prompter, opts)

@@ -55,6 +55,23 @@ class Prompter:
                 raise Aborted("calibration aborted")
             self.say("please answer y, n or a")
 
+    def direction(self, question):
+        """+1 (toward 60 mm), -1 (toward 0 mm) or None (not seen, or --yes: nobody to ask)."""
+        if self.yes:
+            self.say(question + " [--yes: nobody watching]")
+            return None
+        while True:
+            answer = self._read(question + " [+ = toward 60 mm / - = toward 0 mm / ? = did not see / a = abort]: ")
+            if answer in ("+", "60"):
+                return 1
+            if answer in ("-", "0"):
+                return -1
+            if answer == "?":
+                return None
+            if answer.lower() in ("a", "abort", "q"):
+                raise Aborted("calibration aborted")
+            self.say("please answer +, -, ? or a")
+
     def number(self, question):
         """A number the person reads off an instrument (dial gauge, force gauge)."""
         if self.yes:

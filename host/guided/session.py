@@ -87,6 +87,19 @@ class Session:
         return got, status
 
 
+    def flash_board(self, board_path):
+        """Install the firmware with board file `board_path` (the calibration on the board stays)
+        and use that board file from now on; returns the firmware's status."""
+        from host.flashing import flash
+
+        self.client.close()
+        self.client = None
+        status = flash(self.path, str(board_path), None, progress=lambda m: self.say("  flash: " + m), ask_board=False)
+        self.board_path, self.board = resolve_board(str(board_path))
+        self.client = BoardClient(self.path)
+        return status
+
+
 def file_crc32(path):
     """The CRC the firmware reports for the calibration file at `path` (its envelope's crc32)."""
     import json
