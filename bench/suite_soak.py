@@ -4,8 +4,8 @@
     .venv/bin/python bench/suite_soak.py --reps 3 --busy 2        # two CPU-bound processes meanwhile
     .venv/bin/python bench/suite_soak.py --reps 5 -- tests/test_sim_machine.py   # a subset
 
-Each repetition is `python -m pytest -q -rA --junitxml=OUT/rep-K.xml` (plus anything after
-`--`), run from the repository; per-test outcomes come from the junit XML. `--busy N` starts N
+Each repetition is `python -m pytest -q -n 2 -rA --junitxml=OUT/rep-K.xml` (the README's test
+command; `--workers 0` runs without pytest-xdist; plus anything after `--`), run from the repository; per-test outcomes come from the junit XML. `--busy N` starts N
 busy-looping processes before the first repetition and kills them after the last, whatever
 happens (normal end, an exception, Ctrl-C, SIGTERM; each also exits by itself once this script
 is gone, even after a SIGKILL). The load average (`/proc/loadavg`) is printed before and after
@@ -82,13 +82,14 @@ def outcomes(xml_path):
     return out
 
 
-def run_rep(k, out_dir, pytest_args):
+def run_rep(k, out_dir, pytest_args, workers=2):
     xml = out_dir / ("rep-%d.xml" % k)
     log = out_dir / ("rep-%d.log" % k)
     load_before = loadavg()
     t0 = time.monotonic()
     with open(log, "w") as f:
-        code = subprocess.call([sys.executable, "-m", "pytest", "-q", "-rA", "-p", "no:cacheprovider",
+        parallel = ["-n", str(workers)] if workers else []
+        code = subprocess.call([sys.executable, "-m", "pytest", "-q", *parallel, "-rA", "-p", "no:cacheprovider",
                                 "--junitxml", str(xml), *pytest_args], cwd=str(REPO), stdout=f, stderr=subprocess.STDOUT)
     wall = time.monotonic() - t0
     return {"rep": k, "code": code, "wall_s": wall, "load_before": load_before, "load_after": loadavg(),
@@ -137,6 +138,7 @@ def main(argv=None):
     ap.add_argument("--busy", type=int, default=0, metavar="N",
                     help="keep N CPU-bound processes running for the whole soak (default 0: the machine as it is)")
     ap.add_argument("--out", default=None, help="directory for the junit XML, logs and summary.md")
+    ap.add_argument("--workers", type=int, default=2, help="pytest-xdist workers (-n), as the README's test command; 0: none")
     ap.add_argument("pytest_args", nargs="*", help="after --: passed to pytest (e.g. a subset of tests)")
     args = ap.parse_args(argv)
     mode = "busy (%d CPU-bound processes)" % args.busy if args.busy else "as the machine is (no added load)"
@@ -156,7 +158,7 @@ def main(argv=None):
               flush=True)
         burners = start_burners(args.busy)
         for k in range(1, args.reps + 1):
-            r = run_rep(k, out_dir, args.pytest_args)
+            r = run_rep(k, out_dir, args.pytest_args, args.workers)
             reps.append(r)
             c = collections.Counter(o for o, _ in r["tests"].values())
             print("rep %d: %.0f s, exit %d, %d passed, %d failed, %d error, %d skipped; load %s -> %s" % (
