@@ -1,24 +1,30 @@
 """The calibration file on the board: verify it, then hand the control step its integer constants.
 
-File format (one JSON document, written by host/calibration_file.py):
+File format (written by host/calibration_file.py), schema 2: a JSON document a person can read,
 
-    {"format": "lsea-kit calibration", "schema": 1, "crc32": <int>, "payload": "<JSON text>"}
+    {"format": "lsea-kit calibration", "schema": 2, "crc32": <int>,
+    "payload": {
+     ... the payload object, pretty-printed ...
+    }
+    }
 
-The payload is itself a JSON document kept as a string, and `crc32` is binascii.crc32 of that
-string's UTF-8 bytes (ASCII only: the host writes it with ensure_ascii). The firmware checks the
-CRC on exactly the bytes the host wrote, so no re-serialisation is involved (MicroPython's
-json.dumps orders keys and spaces differently from CPython's). The payload repeats "schema" so
-the version is also covered by the CRC. Payload keys: "schema", "board", "date", "pots"
-(identity of pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl",
-"fixed": [ints], ...float coefficients and fit statistics for people}), and the optional
-"df", "force", "force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null),
-and the optional "friction" ({"kind": "friction", "fixed": [h_mN], ...}: the output block's
-Coulomb friction, see firmware/measurement.py).
+where `crc32` is binascii.crc32 of the payload's exact bytes: from after `\n"payload": ` up to
+the newline before the document's closing brace. The firmware checks the CRC on exactly the
+bytes the host wrote, so no re-serialisation is involved (MicroPython's json.dumps orders keys
+and spaces differently from CPython's). Schema 1 files (the payload kept as a JSON string in
+one line, the CRC over that string) are still read. The payload repeats "schema" so the version
+is also covered by the CRC. Payload keys: "schema", "board", "date", "pots" (identity of
+pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl", "fixed": [ints],
+...float coefficients, units and fit statistics for people}), and the optional "df", "force",
+"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null), and the optional
+"friction" ({"kind": "friction", "fixed": [h_mN], ...}: the output block's Coulomb friction,
+see firmware/measurement.py).
 
 `load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
 integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
-non-zero divisors) so a file that passes can never make the control step divide by zero or
-leave 31 bits. This module runs unchanged under CPython; the host imports its checks.
+non-zero divisors, a proof that each polynomial stays within 31 bits) so a file that passes can
+never make the control step divide by zero or leave 31 bits. This module runs unchanged under
+CPython; the host imports its checks.
 """
 
 import json
@@ -33,7 +39,8 @@ from firmware.poly_fixed import invalid as poly_invalid
 from firmware.pwl_fixed import pwl
 
 FORMAT = "lsea-kit calibration"
-SCHEMA = 1
+SCHEMA = 2  # what the host writes; schema 1 is read too
+PAYLOAD_KEY = '\n"payload": '  # schema 2: the payload object starts after this
 POT_SECTIONS = ("pot1", "pot2")
 POLY_SECTIONS = ("df", "force", "force_inverse")
 FRICTION_SECTION = "friction"
@@ -52,17 +59,44 @@ def payload_crc(text):
     return binascii.crc32(text.encode()) & 0xFFFFFFFF
 
 
-def parse_document(text):
-    """(payload dict, crc) of a calibration file's text, after checking format, version and CRC."""
+def _envelope(doc):
+    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
+        raise CalibrationError("not an lsea-kit calibration file")
+    if doc.get("schema") not in (1, SCHEMA):
+        raise CalibrationError("schema version %r not supported (this firmware reads 1 and %d)" % (doc.get("schema"), SCHEMA))
+    return doc
+
+
+def _payload_of(text):
+    """(envelope dict, payload text) of a file's text, in either layout."""
+    i = text.find(PAYLOAD_KEY)
+    if i >= 0:  # schema 2: the envelope's head, then the payload object's own bytes
+        end = text.rfind("\n}")
+        head = text[:i].rstrip()
+        if head.endswith(","):
+            head = head[:-1]
+        try:
+            head = json.loads(head + "}")
+        except ValueError:
+            raise CalibrationError("not valid JSON")
+        doc = _envelope(head)
+        if doc["schema"] != 2 or end < i:
+            raise CalibrationError("schema %r file laid out as schema 2" % (doc["schema"],))
+        return doc, text[i + len(PAYLOAD_KEY) : end]
     try:
         doc = json.loads(text)
     except ValueError:
         raise CalibrationError("not valid JSON")
-    if not isinstance(doc, dict) or doc.get("format") != FORMAT:
-        raise CalibrationError("not an lsea-kit calibration file")
-    if doc.get("schema") != SCHEMA:
-        raise CalibrationError("schema version %r not supported (this firmware reads %d)" % (doc.get("schema"), SCHEMA))
-    payload = doc.get("payload")
+    doc = _envelope(doc)
+    if doc["schema"] != 1:
+        raise CalibrationError("schema version %r with its payload as a string: not a layout this firmware reads"
+                               % (doc["schema"],))
+    return doc, doc.get("payload")
+
+
+def parse_document(text):
+    """(payload dict, crc) of a calibration file's text, after checking format, version and CRC."""
+    doc, payload = _payload_of(text)
     crc = doc.get("crc32")
     if not isinstance(payload, str) or not isinstance(crc, int):
         raise CalibrationError("payload or crc32 missing")
@@ -72,7 +106,7 @@ def parse_document(text):
         body = json.loads(payload)
     except ValueError:
         raise CalibrationError("payload is not valid JSON")
-    if not isinstance(body, dict) or body.get("schema") != SCHEMA:
+    if not isinstance(body, dict) or body.get("schema") != doc["schema"]:
         raise CalibrationError("payload schema does not match the envelope")
     return body, crc
 

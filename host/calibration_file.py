@@ -1,8 +1,9 @@
 """The calibration file on the host: build it section by section, write it atomically, read it back.
 
 The format and its checks live in `firmware/calibration.py` (one source of truth, imported
-here): an envelope {"format", "schema", "crc32", "payload"} whose payload is a JSON string, its
-CRC32 taken over that string's bytes, so the firmware verifies exactly what was written.
+here): an envelope {"format", "schema", "crc32", "payload"} whose payload is a pretty-printed
+JSON object (lists of numbers kept on one line), its CRC32 taken over the payload's exact bytes,
+so the firmware verifies exactly what was written and a person can read and diff two files.
 
 Writes are atomic: the whole text is serialised first, then written to a temporary file in the
 same directory, flushed, fsync'ed and moved over the old file with os.replace (and the directory
@@ -15,11 +16,13 @@ import datetime
 import json
 import math
 import os
+import re
 import tempfile
 from pathlib import Path
 
 from firmware.calibration import (
     FORMAT,
+    PAYLOAD_KEY,
     FRICTION_SECTION,
     POLY_SECTIONS,
     POT_SECTIONS,
@@ -79,13 +82,23 @@ def check_sections(doc):
         raise UserError(str(e)) from None
 
 
+_NUMBER_LIST = re.compile(r"\[\n\s*(-?[0-9][-+.eE0-9]*(?:,\n\s*-?[0-9][-+.eE0-9]*)*)\n\s*\]")
+
+
+def _pretty(body):
+    """Indented JSON with every list of numbers on one line (a 70-word table stays one line)."""
+    text = json.dumps(body, sort_keys=True, ensure_ascii=True, allow_nan=False, indent=1)
+    return _NUMBER_LIST.sub(lambda m: "[" + ", ".join(v.strip() for v in m.group(1).split(",")) + "]", text)
+
+
 def encode_document(doc):
-    """The file text for payload `doc` (envelope, CRC, trailing newline)."""
+    """The file text for payload `doc`: the envelope's head on one line, then the payload object
+    (CRC over its exact bytes), then the closing brace and a newline."""
     body = _plain(dict(doc, schema=SCHEMA))
     check_sections(body)
-    payload = json.dumps(body, sort_keys=True, ensure_ascii=True, allow_nan=False, separators=(",", ":"))
-    envelope = {"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload), "payload": payload}
-    return json.dumps(envelope, ensure_ascii=True, separators=(",", ":")) + "\n"
+    payload = _pretty(body)
+    head = json.dumps({"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload)}, ensure_ascii=True)
+    return head[:-1] + "," + PAYLOAD_KEY + payload + "\n}\n"
 
 
 def write_calibration(path, doc):
@@ -176,6 +189,7 @@ def pot_section(fit, adc_bits, pot_id=None, max_error_um=None):
         "pot_id": pot_id,
         "model": fit.model,
         "order": int(fit.order),
+        "units": ["ADC code", "mm (coefficients)", "um (fixed)"],
         "coefficients": coefficients,
         "fit": stats,
         "fixed": list(fixed),

@@ -97,7 +97,7 @@ def test_round_trip(tmp_path, board, ids, fits, with_df):
         assert stored["fixed_check"] == section["fixed_check"]
     assert ("df" in back) == with_df
     cal = load_calibration(str(path))
-    assert cal.crc == crc and cal.board == board and cal.version == 1 and cal.pots == doc["pots"]
+    assert cal.crc == crc and cal.board == board and cal.version == 2 and cal.pots == doc["pots"]
     assert numbers(cal)[:4] == (doc["pot1"]["kind"], doc["pot1"]["fixed"], doc["pot2"]["kind"], doc["pot2"]["fixed"])
     assert (cal.df is not None) == with_df and cal.force is None and cal.force_inverse is None
     # what the board will compute is the fitted curve, within the bound the export promised
@@ -161,6 +161,24 @@ def test_rejects_bad_documents_with_a_reason(tmp_path, mutate, reason):
     path.write_text(raw_document(*mutate(body)))
     with pytest.raises(CalibrationError, match=reason):
         load_calibration(str(path))
+
+
+def test_the_file_is_readable_json_and_schema_1_files_are_still_read(tmp_path):
+    """Schema 2: the whole file is one JSON document whose payload is an object a person can
+    read (one key per line, number lists on one line); the CRC covers the payload's exact bytes.
+    A schema 1 file (the payload as a one-line string) still loads, with the same numbers."""
+    path = tmp_path / "cal.json"
+    doc = full_document()
+    write_calibration(path, doc)
+    text = path.read_text()
+    whole = json.loads(text)
+    assert whole["schema"] == 2 and whole["payload"]["pot1"]["fixed"] == doc["pot1"]["fixed"]
+    assert len(text.splitlines()) > 20 and max(len(l) for l in text.splitlines() if '"fixed"' not in l) < 200
+    old = tmp_path / "old.json"
+    old.write_text(raw_document(json.loads(json.dumps(dict(full_document(), schema=1)))))
+    assert "\n" not in old.read_text().strip()
+    assert numbers(load_calibration(str(old))) == numbers(load_calibration(str(path)))
+    assert read_calibration(old)["pot1"]["fixed"] == doc["pot1"]["fixed"]
 
 
 def test_missing_and_non_json_files(tmp_path):
@@ -273,7 +291,7 @@ def test_firmware_loader_under_micropython(tmp_path):
         "        print('refused:', e)\n"
     ) % (str(path), "pico \u00b5", list(cal.pot1[1]), codes, codes, str(bad), str(tmp_path / "missing.json"))
     out = run_micropython(source).stdout.splitlines()
-    assert out[0] == "%d 1 True True" % crc
+    assert out[0] == "%d 2 True True" % crc
     assert out[1] == "bcm3 pwl True"
     assert out[2].split() == [str(convert(cal.pot1[0], x, cal.pot1[1])) for x in codes]
     assert out[3].split() == [str(convert(cal.pot2[0], x, cal.pot2[1])) for x in codes]

@@ -1,0 +1,45 @@
+"""`host show FILE [OTHER]`: what a calibration file holds, in words; with two files, how they differ."""
+
+import json
+
+from firmware.calibration import parse_document
+from host.calibration_file import read_calibration
+from host.calibration_report import compare, describe
+
+
+def add_parser(subparsers):
+    p = subparsers.add_parser(
+        "show", help="show what a calibration file holds (models, ranges, fit quality, Df, force, friction); two files: "
+        "how they differ",
+        description="Reads the file with the firmware's own checks (CRC, every section), then prints each pot's model, "
+        "code range and positions, fit quality, the Df and force polynomials, the friction, board, pot ids and date. "
+        "With a second file, what differs as the board would compute it (curves evaluated with the firmware's "
+        "integer code at every ADC code).")
+    p.add_argument("file", help="calibration file")
+    p.add_argument("other", nargs="?", default=None, help="a second calibration file to compare with")
+    p.add_argument("--json", action="store_true", help="print the payload(s) as JSON")
+    p.set_defaults(func=run)
+
+
+def _crc(path):
+    """The file's CRC (read_calibration has already checked it)."""
+    with open(path) as f:
+        return parse_document(f.read())[1]
+
+
+def run(args):
+    a = read_calibration(args.file)  # UserError with one line when it is not a usable calibration
+    if args.other is None:
+        if args.json:
+            print(json.dumps(a, indent=1, sort_keys=True))
+        else:
+            print("%s:" % args.file)
+            print("\n".join("  " + line for line in describe(a, _crc(args.file))))
+        return 0
+    b = read_calibration(args.other)
+    if args.json:
+        print(json.dumps({"first": a, "second": b}, indent=1, sort_keys=True))
+        return 0
+    print("%s | %s:" % (args.file, args.other))
+    print("\n".join("  " + line for line in compare(a, b)))
+    return 0
