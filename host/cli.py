@@ -13,6 +13,7 @@ import sys  # noqa: E402
 
 import host
 import host.commands
+from host import terminal
 from host.errors import UserError
 
 
@@ -31,10 +32,15 @@ def build_parser():
         "run the guided calibration and the paper's experiments.",
     )
     parser.add_argument("--version", action="version", version="lsea-kit " + host.__version__)
+    parser.add_argument("-q", "--quiet", action="store_true",
+                        help="no progress lines on stderr (results, warnings and errors are still printed)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(host.commands.__path__), key=lambda m: m.name):
         module = importlib.import_module("host.commands." + info.name)
         module.add_parser(sub)
+    for command in sub.choices.values():  # `host demo --quiet` as well as `host --quiet demo`
+        command.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                             help="no progress lines on stderr")
     return parser
 
 
@@ -60,6 +66,7 @@ def _main(argv):
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    terminal.set_quiet(args.quiet)
     try:
         return args.func(args) or 0
     except UserError as exc:

@@ -3,13 +3,37 @@
 `record(board, path, seconds, rate)` streams from a BoardClient, writes rows as they arrive (so a
 Ctrl-C or a lost port still leaves a complete file up to the last frame), keeps the host timeout
 away with heartbeats, and returns a `LogSummary` (samples, rate, lost frames, board drops).
+Beside the CSV (a plain table any tool reads) it writes RUN.meta.json: the board, firmware and
+protocol version, calibration CRC, loop period, stream rate, the date, each column's unit, and
+the code tables of the `mode` and `faults` columns.
 """
 
 import csv
+import datetime
+import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
+from firmware.controller import MODE_NAMES
+from firmware.safety import FAULT_NAMES
 from firmware.telemetry import FIELDS
+
+# Each column's unit (a new telemetry field must say its unit here: tests check)
+UNITS = {
+    "t_us": "us since the firmware started, wraps at 2**30",
+    "raw1": "ADC code (board-native bits), pot 1",
+    "raw2": "ADC code, pot 2",
+    "raw_ref": "ADC code, reference input (0 without one)",
+    "d1_um": "um, nut position D1* (Df corrected)",
+    "d2_um": "um, output block position D2",
+    "defl_um": "um, spring deformation D1* - D2",
+    "force_mN": "mN, F0(d)",
+    "target": "the mode's target: duty (open_loop), um (position), mN (force)",
+    "duty": "signed duty, 10000 = 100 %",
+    "mode": "code: see modes",
+    "faults": "bit mask: see faults",
+}
 
 # What the firmware computes from the calibration; all 0 in records from a board without one.
 CALIBRATED_FIELDS = ("d1_um", "d2_um", "defl_um", "force_mN")
@@ -35,8 +59,33 @@ class LogSummary:
             " (interrupted)" if self.interrupted else "")
 
 
+def metadata_path(path):
+    """RUN.meta.json beside RUN.csv."""
+    path = Path(path)
+    return path.with_name(path.stem + ".meta.json")
+
+
+def metadata(status, rate):
+    """What a log's numbers need to be read later: from the board's status at the start."""
+    crc = status.get("calibration_crc")
+    return {
+        "date": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
+        "board": status.get("board"), "firmware": status.get("version"), "protocol": status.get("protocol"),
+        "interpreter": status.get("interpreter"),
+        "calibration_crc": None if crc is None else "%08x" % (crc & 0xFFFFFFFF),
+        "calibration_error": status.get("calibration_error"),
+        "loop_period_us": status.get("period_us"), "stream_hz": rate,
+        "columns": {name: UNITS[name] for name in FIELDS},
+        "modes": {str(i): name for i, name in enumerate(MODE_NAMES)},
+        "faults": {str(bit): name for bit, name in FAULT_NAMES},
+    }
+
+
 def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1.0):
-    """Stream telemetry at `rate` Hz into CSV `path` for `seconds` (None: until Ctrl-C)."""
+    """Stream telemetry at `rate` Hz into CSV `path` for `seconds` (None: until Ctrl-C); the
+    metadata go to RUN.meta.json first."""
+    meta = metadata(board.call("status"), rate)
+    metadata_path(path).write_text(json.dumps(meta, indent=1) + "\n")
     summary = LogSummary()
     decoder = board.decoder
     lost0, crc0, skip0 = decoder.lost_frames, decoder.crc_errors, decoder.skipped_bytes

@@ -7,7 +7,12 @@ update is a line of its own, at most one a `every` seconds, so a saved log stays
 import sys
 import time
 
-_state = {"open": False, "last": 0.0}
+_state = {"open": False, "last": 0.0, "quiet": False}
+
+
+def set_quiet(flag):
+    """`host --quiet`: no progress lines at all (a script reads results from stdout)."""
+    _state["quiet"] = bool(flag)
 
 
 def _tty():
@@ -19,6 +24,8 @@ def _tty():
 
 def progress_line(text, every=0.0):
     """Show `text` as the current progress; `every` limits how often it is written off a terminal."""
+    if _state["quiet"]:
+        return
     if _tty():
         sys.stderr.write("\r" + text[:110].ljust(110))
         _state["open"] = True
@@ -29,6 +36,12 @@ def progress_line(text, every=0.0):
         _state["last"] = now
         sys.stderr.write(text.rstrip() + "\n")
     sys.stderr.flush()
+
+
+def note(text):
+    """A progress message on a line of its own on stderr (nothing under --quiet)."""
+    if not _state["quiet"]:
+        print(text, file=sys.stderr, flush=True)
 
 
 def end_progress():

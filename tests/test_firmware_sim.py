@@ -7,7 +7,8 @@ import pytest
 
 import fake_hardware
 import test_firmware_sim_cases as sim_cases
-from firmware.calibration import FORMAT, SCHEMA, payload_crc
+from firmware.calibration import SCHEMA
+from host.calibration_file import encode_document
 from micropython_runner import run_case
 
 TARGETS = [10000, 45000, 30000, 5000, 55000]
@@ -46,9 +47,7 @@ def _write_calibration(path, cal):
     for name in ("df", "force", "force_inverse"):
         body[name] = {"kind": "poly", "fixed": cal[name]}
     body["friction"] = {"kind": "friction", "fixed": cal["friction"]}
-    payload = json.dumps(body, ensure_ascii=True)
-    doc = {"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload), "payload": payload}
-    path.write_text(json.dumps(doc))
+    path.write_text(encode_document(body))  # the real calibration-file code
 
 
 def test_boot_reads_calibration_file_and_refuses_a_corrupt_one(tmp_path, cal_data):

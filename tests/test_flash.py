@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from firmware.calibration import load_calibration, payload_crc
+from firmware.calibration import load_calibration
 from host import cli
 from host.board_client import BoardClient
-from host.calibration_file import new_document, write_calibration
+from host.calibration_file import encode_document, new_document, read_calibration, write_calibration
 from host.flashing import flash
 from host.virtual_board import VirtualBoard
 
@@ -251,20 +251,17 @@ def test_board_main_restores_a_calibration_left_aside_by_an_interrupted_fat_swap
 def _bad_calibrations(d, good):
     """Files flash must refuse: each broken the way a person or a disk breaks them."""
     text = Path(good).read_text()
-    env = json.loads(text)
-    body = json.loads(env["payload"])
+    crc = json.loads(text)["crc32"]
+    body = read_calibration(good)
     out = {
         "empty": "",
         "truncated": text[: len(text) // 2],
-        "bad CRC": json.dumps(dict(env, crc32=env["crc32"] ^ 1)),
+        "bad CRC": text.replace('"crc32": %d' % crc, '"crc32": %d' % (crc ^ 1), 1),
         "deeply nested": "[" * 100000 + "]" * 100000,
     }
     seg = dict(body, pot1={"kind": "pwl", "fixed": [2, 4, 0, 65536, 0, 60000]})  # one 60 mm segment: dx*dy > 2**30
-    payload = json.dumps(seg, sort_keys=True, separators=(",", ":"))
-    out["overflowing segment"] = json.dumps(dict(env, payload=payload, crc32=payload_crc(payload)))
-    other = dict(body, board="pico")
-    payload = json.dumps(other, sort_keys=True, separators=(",", ":"))
-    out["another board"] = json.dumps(dict(env, payload=payload, crc32=payload_crc(payload)))
+    out["overflowing segment"] = encode_document(seg, check=False)
+    out["another board"] = encode_document(dict(body, board="pico"))
     paths = {}
     for name, content in out.items():
         p = d / (name.replace(" ", "_") + ".json")

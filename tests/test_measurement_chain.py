@@ -10,7 +10,8 @@ import pytest
 
 import fake_hardware
 import firmware_chain_cases
-from firmware.calibration import FORMAT, SCHEMA, convert, load_calibration, payload_crc
+from firmware.calibration import SCHEMA, convert, load_calibration
+from host.calibration_file import encode_document
 from firmware.measurement import STROKE_CLAMP_UM
 from firmware.poly_fixed import poly
 from micropython_runner import run_case
@@ -27,8 +28,7 @@ def write_calibration(path, cal):
         body[name] = {"kind": cal[name][0], "fixed": cal[name][1]}
     for name in ("df", "force", "force_inverse"):
         body[name] = {"kind": "poly", "fixed": cal[name]}
-    payload = json.dumps(body, ensure_ascii=True)
-    path.write_text(json.dumps({"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload), "payload": payload}))
+    path.write_text(encode_document(body))  # the real calibration-file code
 
 
 @pytest.fixture(scope="module", params=["pwl", "bcm3"])

@@ -53,3 +53,10 @@ def test_a_closed_pipe_ends_a_command_quietly():
         code = p.wait(timeout=300)
         assert "Traceback" not in err and "BrokenPipe" not in err and "Exception ignored" not in err, err
         assert code in (0, 141), (args, code, err)
+
+
+def test_quiet_leaves_only_the_result(tmp_path):
+    for args in (["demo", "--quiet", "--out", str(tmp_path / "a")], ["--quiet", "demo", "--out", str(tmp_path / "b")]):
+        proc = _host(*args)
+        assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+        assert proc.stdout.strip().startswith("report: "), proc.stdout

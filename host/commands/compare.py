@@ -32,7 +32,6 @@ def add_parser(subparsers):
         help="worker processes (default 1; more helps only when CPUs are idle: each worker "
         "re-imports numpy/scipy, about 1 s)",
     )
-    p.add_argument("--quiet", action="store_true", help="no per-model progress on stderr")
     p.set_defaults(func=run)
 
 

@@ -9,6 +9,7 @@ import sys
 from pathlib import Path
 
 from host.errors import UserError
+from host.terminal import note
 
 
 def add_parser(subparsers):
@@ -64,8 +65,7 @@ def run(args):
     from host.fit_plots import plot_fit
     from host.sweep import load_sweep
 
-    def say(msg):  # progress to stderr; the report's path (the result) to stdout
-        print(msg, file=sys.stderr, flush=True)
+    say = note  # progress to stderr; the report's path (the result) to stdout
 
     out_dir = Path(args.out)
     try:

@@ -10,6 +10,7 @@ import time
 from host.errors import UserError
 from host.models import MODELS
 from host.numbers import ranged
+from host.terminal import note
 
 DEFAULT_ORDER = {"bcm": 3, "pcm": 10, "pcm-raw": 10, "cheb": 10, "spline": 8, "pchip": 8, "lut": 16, "pwl": 5}
 MAX_ORDER = 40
@@ -174,7 +175,7 @@ def run(args):
     from host.sweep import load_sweep
 
     _check_model_available(args.model)
-    say = (lambda msg: None) if args.json else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    say = (lambda msg: None) if args.json else note
     sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()
     result, floors, reason = fit_sweep(sweep, args.model, args.order, args.bounds, args.budget, progress=say)

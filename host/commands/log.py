@@ -5,7 +5,7 @@ import sys
 from host.board_client import add_port_arguments, open_board
 from host.errors import UserError
 from host.numbers import ranged
-from host.telemetry_log import CALIBRATED_FIELDS, record
+from host.telemetry_log import metadata_path, CALIBRATED_FIELDS, record
 from host.terminal import end_progress, progress_line
 
 
@@ -42,4 +42,5 @@ def run(args):
             raise
     end_progress()
     print("%s: %s" % (args.out, summary.line()))
+    print("metadata (board, firmware, calibration CRC, units, mode and fault codes): %s" % metadata_path(args.out))
     return 0
