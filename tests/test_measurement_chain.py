@@ -4,7 +4,6 @@ file (firmware/calibration.py: load_calibration, convert; poly_fixed.poly), for 
 each pot (the other held fixed), with pwl-table and bcm3 pots; and Df, F0, d(F0) at every integer
 input of their declared ranges (plus a margin where the input is clamped)."""
 
-import json
 
 import pytest
 
