@@ -191,8 +191,3 @@ def encode_frame(ftype, seq, payload=b"", count=0):
 def telemetry_frame_words(count):
     """Words in a telemetry frame carrying `count` records (header, dropped, records, CRC)."""
     return 3 + 1 + count * RECORD_WORDS + 1
-
-
-def telemetry_word0(count):
-    return SYNC_WORD | (T_TELEMETRY << 16) | (count << 24)
-

@@ -28,10 +28,6 @@ class Frame(NamedTuple):
     count: int
     payload: bytes
 
-    @property
-    def type_name(self):
-        return P.TYPE_NAMES.get(self.type, str(self.type))
-
     def json(self):
         return json.loads(self.payload.decode()) if self.payload else None
 
@@ -152,13 +148,5 @@ class FrameDecoder:
         """The stream ended: return the frames still recoverable from what is buffered."""
         return self.feed(b"", final=True)
 
-    def restart_sequence(self):
-        """Forget the last telemetry sequence number (after stream off/on)."""
-        self._last_tseq = None
-
     def pending(self):
         return len(self._buf)
-
-
-def encode_command(seq, name, *args):
-    return P.format_command(seq, name, *args)

@@ -1,6 +1,6 @@
 """The BCM: a rational Bernstein (Bezier) calibration curve of degree n, and how it is fitted.
 
-Model (SPEC section 2, the paper's eq. 2), with t = (x - lx) / rx clamped to [0, 1]:
+Model (the paper's section 2, the paper's eq. 2), with t = (x - lx) / rx clamped to [0, 1]:
 
     f(x) = sum_i B_i(t) w_i p_i / sum_i B_i(t) w_i,    B_i(t) = C(n, i) t^i (1 - t)^(n - i)
 

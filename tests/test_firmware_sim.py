@@ -1,4 +1,4 @@
-"""The firmware against E's simulated actuator, and booting from real calibration files."""
+"""The firmware against the simulated actuator, and booting from real calibration files."""
 
 import json
 
@@ -70,7 +70,7 @@ def test_force_mode_holds_gauge_targets_on_sim(tmp_path, cal_data):
     path.write_text(json.dumps({"cal": cal_data}))
     call = "case_force_sim(%r, %r)" % (str(path), [-5000, -10000, -15000])
     for out in (eval("sim_cases." + call), on_micropython(call)):
-        # The paper's steps (SPEC 5): -5, -10, -15 N, measured -5.2 / -10.7 / -14.4 N. After 2 s,
+        # The paper's steps (the paper's section 5): -5, -10, -15 N, measured -5.2 / -10.7 / -14.4 N. After 2 s,
         # the mean of the firmware's own estimate over 0.5 s: the PI removes its error to within
         # the estimate's noise (two pots, ~17 um of deformation each read, x 12.4 mN/um, about
         # 200 mN sigma per step, averaged over 500 steps) plus slow integral convergence: 200 mN.

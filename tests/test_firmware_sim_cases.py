@@ -82,7 +82,7 @@ def case_boot_calibration_file(good_path, bad_path):
 
 
 def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
-    """Force mode on the simulated actuator pulling the force gauge through the fibre (SPEC 4).
+    """Force mode on the simulated actuator pulling the force gauge through the fibre (the paper's section 4).
 
     For each target: settle, then average over `hold_ticks` the firmware's force estimate
     F0(d) and the model's true spring force. Returns the worst |mean - target| of each, mN.

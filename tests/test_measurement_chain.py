@@ -49,7 +49,7 @@ def clamp(x):
 
 
 def reference_chain(cal, r1, r2):
-    """The chain written out from the calibration's integer evaluators (SPEC: D1* = D1 -
+    """The chain written out from the calibration's integer evaluators (the paper: D1* = D1 -
     Df_hat(D1), d = D1* - D2, F = F0(d); positions clamped to +-STROKE_CLAMP_UM)."""
     d1 = clamp(convert(cal.pot1[0], r1, list(cal.pot1[1])))
     d1s = clamp(d1 - poly(d1, list(cal.df)))

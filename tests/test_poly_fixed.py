@@ -1,5 +1,5 @@
 """Polynomials in integer arithmetic (Horner, per-step exponents): Df_hat, F0(d) and d(F0) from
-SPEC section 3-4, random polynomials, the 31-bit bound, and bit-identical MicroPython results."""
+the paper's section 3-4, random polynomials, the 31-bit bound, and bit-identical MicroPython results."""
 
 import numpy as np
 import pytest
@@ -11,9 +11,9 @@ from firmware.poly_fixed import poly
 from host.fixed_export import export_poly, track
 from test_fixed_on_micropython import evaluate_on_micropython
 
-DF = [-1.922222e-6, 2.632e-4, -1.63e-2, 0.46, -4.6]  # Df_hat(D1), mm -> mm (SPEC eq. 6)
-F0 = [0.65, 12.37, 2.08]  # F0(d), mm -> N (SPEC eq. 8)
-D_OF_F = [0.00091, 0.070, -0.18]  # d(F0), N -> mm (SPEC eq. 9)
+DF = [-1.922222e-6, 2.632e-4, -1.63e-2, 0.46, -4.6]  # Df_hat(D1), mm -> mm (the paper's eq. 6)
+F0 = [0.65, 12.37, 2.08]  # F0(d), mm -> N (the paper's eq. 8)
+D_OF_F = [0.00091, 0.070, -0.18]  # d(F0), N -> mm (the paper's eq. 9)
 SPEC_CASES = [  # (coefficients, x range in natural units, in_scale, out_scale)
     (DF, (0.0, 60.0), 1000, 1000),  # um -> um
     (F0, (-2.0, 6.0), 1000, 1000),  # um -> mN

@@ -135,7 +135,7 @@ def test_bcm3_is_close_to_the_noise_floor_on_the_example(example_sweep):
     floor = estimate_noise(s.x, s.y, s.direction)
     rms = [fit_model("bcm", s.x, s.y, n).rms for n in (1, 3, 5)]
     assert rms[0] > rms[1] > rms[2] > floor  # more handles help, nothing beats the noise
-    assert rms[1] < 8 * floor  # SPEC: BCM-3 sits 3-6.5x above the floor on knee data
+    assert rms[1] < 8 * floor  # the paper: BCM-3 sits 3-6.5x above the floor on knee data
 
 
 def test_real_data_sets_fit(realdata_dir):

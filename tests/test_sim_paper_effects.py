@@ -1,4 +1,4 @@
-"""The simulated actuator reproduces the paper's Df effect (SPEC section 5): in force control at
+"""The simulated actuator reproduces the paper's Df effect (the paper's section 5): in force control at
 no load, +5 N from D2 = 30 mm, an uncorrected assembly error Df stops the block part-way
 ("blocking", 43.1 mm in the paper); with D1 corrected by Df the block runs on to the end stop.
 Run identically on CPython and MicroPython."""

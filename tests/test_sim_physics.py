@@ -17,7 +17,7 @@ def drive_force_n(volts):
 
 
 def spring_n(d):
-    """The documented curve: SPEC's k1 d + k2 d|d| until one spring loses its preload, then
+    """The documented curve: the paper's k1 d + k2 d|d| until one spring loses its preload, then
     half the slope (only the other spring still pushes)."""
     sp = PARAMS["springs"]
     k1, k2 = sp["k1_n_per_mm"], sp["k2_n_per_mm2"]

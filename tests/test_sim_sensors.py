@@ -65,7 +65,7 @@ emit({'df': df, 'seen': seen})
 """)
     df = r["df"]
     xs = [i * 0.5 for i in range(121)]
-    # The documented shape: SPEC eq. 6 with the opposite sign (docs/simulated-actuator.md says why).
+    # The documented shape: the paper's eq. 6 with the opposite sign (docs/simulated-actuator.md says why).
     for x, v in zip(xs, df):
         spec = -1.922222e-6 * x**4 + 2.632e-4 * x**3 - 1.63e-2 * x**2 + 0.46 * x - 4.6
         assert v == pytest.approx(-spec, abs=2e-3), x

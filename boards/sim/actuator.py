@@ -7,7 +7,7 @@ Mechanics (one degree of freedom each for the nut and the block):
   a tick, so the current is quasi-static, i = (V - ke * omega) / R, and the drive force on the
   nut is eta * kt * G * i. Its back-EMF part is a viscous term, integrated implicitly.
 - Springs: the nut drives the block through two preloaded springs. While the preload keeps both
-  in contact their net force is F(d) = k1 d + k2 d|d| of the deformation d = nut - block (SPEC
+  in contact their net force is F(d) = k1 d + k2 d|d| of the deformation d = nut - block (the paper
   section 4). Beyond d_release = preload_n / (k1 / 2) one spring has lost its preload and lifts
   off: from there only the other spring acts and the slope halves. Hard contact at
   |d| = cavity_mm (an inelastic constraint).
@@ -15,7 +15,7 @@ Mechanics (one degree of freedom each for the nut and the block):
   overcome Coulomb friction), hard end stops at the stroke ends.
 - Load: none, a constant force, or a force gauge pulled through a fibre: a spring that acts only
   in tension. On the "high" side (default) the gauge sits toward 60 mm and the fibre is taut when
-  the block is below the anchor, as in SPEC section 4 where pulling the block leftward gives
+  the block is below the anchor, as in the paper's section 4 where pulling the block leftward gives
   negative actuator forces; on the "low" side it sits toward 0 mm, taut above the anchor, and the
   actuator's forces against it are positive.
 Integration: semi-implicit (symplectic) Euler with enough sub-steps per call that omega * h

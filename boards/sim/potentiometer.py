@@ -25,7 +25,7 @@ averaged, and where noise makes g fall as u rises the closest non-decreasing cur
 e(x) = sum_k c_k v**k (k = 0..4) with v = (x - centre_mm) / half_span_mm: a smooth mounting
 error (the pot body bowed and tilted against the carriage it follows), small in the middle of the
 stroke and growing toward both ends. The two pots get different e, so with no load they disagree
-by Df(x) = e1(x) - e2(x), shaped like SPEC section 3 (docs/simulated-actuator.md gives the split).
+by Df(x) = e1(x) - e2(x), shaped like the paper's section 3 (docs/simulated-actuator.md gives the split).
 Only + - * / are used, so the values are bit-identical under MicroPython and CPython.
 """
 

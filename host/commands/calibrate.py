@@ -11,7 +11,7 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "calibrate",
         help="guided calibration: pots, assembly (Df) and force, written to the calibration file and flashed",
-        description="Guided calibration on the bench (SPEC sections 2-4). Each step says what to mount "
+        description="Guided calibration on the bench (the paper's sections 2-4). Each step says what to mount "
         "and waits for Enter, sweeps or loads the actuator with progress lines, checks the data, shows "
         "the fit statistics and a plot, and asks to accept (y), reject (n) or abort (a). Accepted "
         "sections are written atomically to the calibration file and flashed; the firmware must then "

@@ -1,7 +1,7 @@
 """The Markdown report of `host experiment paper`: each measured figure beside the paper's.
 
 Everything written here comes from the `results` dict of the run (no stored numbers except the
-paper's, quoted from /work/shared/SPEC.md section 5, and the project's targets for the simulated
+paper's, quoted from the paper's section 5 (Song et al., Actuators 2022), and the project's targets for the simulated
 actuator). The report states what was simulated and where the run was shortened.
 """
 
@@ -58,7 +58,7 @@ def write(out_dir, r, opts, command=None):
     add("# The paper's experiments, measured on %s" % ("the simulated actuator (virtual board)" if sim else "board " + r["board"]))
     add("")
     add("Made by `%s` on %s in %.0f s of wall time. Every number below was measured in that run; "
-        "the paper's numbers are quoted from SPEC section 5." % (
+        "the paper's numbers are quoted from the paper's section 5." % (
             command, datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), r["timings"]["total"]))
     add("")
     if sim:

@@ -1,4 +1,4 @@
-"""Calibration 2 (SPEC section 3): the assembly error Df = D1 - D2 between the calibrated pots.
+"""Calibration 2 (the paper's section 3): the assembly error Df = D1 - D2 between the calibrated pots.
 
 With both pots calibrated and no load, the block sweeps end to end (forward and backward at a
 low duty, so the small friction deformation has both signs and averages out). D1 and D2 are

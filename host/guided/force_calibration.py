@@ -1,4 +1,4 @@
-"""Calibration 3 (SPEC section 4): force from spring deformation, F0(d), its inverse, and the
+"""Calibration 3 (the paper's section 4): force from spring deformation, F0(d), its inverse, and the
 output block's friction.
 
 The block pulls a force gauge through a fibre. Each round loads and unloads in open-loop duty

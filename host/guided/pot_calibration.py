@@ -1,4 +1,4 @@
-"""Calibration 1 (SPEC section 2): each pot's inherent nonlinearity against the reference sensor.
+"""Calibration 1 (the paper's section 2): each pot's inherent nonlinearity against the reference sensor.
 
 For each pot the rig mounts the reference in parallel with it; the actuator sweeps forward and
 backward at a low open-loop duty while the firmware logs the pot's code and the reference's code

@@ -88,13 +88,6 @@ class Rig:
         code = float(records[:, acquire.COL["raw_ref"]].astype(float).mean())
         return zero + span * code / ((1 << self.adc_bits) - 1)
 
-    def set_fault(self, fault):
-        """Simulated boards only (tests): make a channel misbehave, e.g. {"channel": "pot1"}."""
-        if not self.virtual:
-            raise UserError("faults can only be injected on the virtual board")
-        self.state["fault"] = fault
-        self._write()
-
     def gauge_reading_n(self, question="Force gauge reading (N):", max_age_s=1.0, beat=None):
         """The force gauge's reading: from the virtual rig's display, else typed by the person.
         `beat` (e.g. client.heartbeat_if_due) is called while waiting for a fresh display: the
