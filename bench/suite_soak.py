@@ -4,7 +4,7 @@
     .venv/bin/python bench/suite_soak.py --reps 3 --busy 2        # two CPU-bound processes meanwhile
     .venv/bin/python bench/suite_soak.py --reps 5 -- tests/test_sim_machine.py   # a subset
 
-Each repetition is `python -m pytest -q -n 2 -rA --junitxml=OUT/rep-K.xml` (the README's test
+Each repetition is `python -m pytest -q -n 2 --dist loadfile -rA --junitxml=OUT/rep-K.xml` (the README's test
 command; `--workers 0` runs without pytest-xdist; plus anything after `--`), run from the repository; per-test outcomes come from the junit XML. `--busy N` starts N
 busy-looping processes before the first repetition and kills them after the last, whatever
 happens (normal end, an exception, Ctrl-C, SIGTERM; each also exits by itself once this script
@@ -82,15 +82,22 @@ def outcomes(xml_path):
     return out
 
 
+def _as_from_a_terminal():
+    """The suite gets the default SIGINT, as when run from a terminal: a soak started with
+    `nohup ... &` inherits SIGINT ignored, which no CI run or person at a terminal has."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def run_rep(k, out_dir, pytest_args, workers=2):
     xml = out_dir / ("rep-%d.xml" % k)
     log = out_dir / ("rep-%d.log" % k)
     load_before = loadavg()
     t0 = time.monotonic()
     with open(log, "w") as f:
-        parallel = ["-n", str(workers)] if workers else []
+        parallel = ["-n", str(workers), "--dist", "loadfile"] if workers else []
         code = subprocess.call([sys.executable, "-m", "pytest", "-q", *parallel, "-rA", "-p", "no:cacheprovider",
-                                "--junitxml", str(xml), *pytest_args], cwd=str(REPO), stdout=f, stderr=subprocess.STDOUT)
+                                "--junitxml", str(xml), *pytest_args], cwd=str(REPO), stdout=f, stderr=subprocess.STDOUT,
+                               preexec_fn=_as_from_a_terminal)
     wall = time.monotonic() - t0
     return {"rep": k, "code": code, "wall_s": wall, "load_before": load_before, "load_after": loadavg(),
             "tests": outcomes(xml)}

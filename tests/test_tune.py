@@ -81,3 +81,14 @@ def test_tune_position_on_the_virtual_board(calibration, tmp_path, capsys):
 
 
 OSCILLATING = {"kp_pos": 32767, "ki_pos": 4096}  # found on the virtual board: see the test above
+
+
+def test_tune_force_against_the_gauge_on_the_virtual_board(calibration, tmp_path, capsys):
+    """Force mode needs something to push against: the virtual rig's force gauge (--load gauge).
+    The default gains settle on a 2 N step, and the figures come in N."""
+    png = tmp_path / "force.png"
+    code = cli.main(["tune", "force", "--port", "sim", "--calibration", calibration, "--load", "gauge",
+                     "--png", str(png)])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert "force loop, step -1 -> -3 N" in out and "settles" in out and png.stat().st_size > 10000
