@@ -180,7 +180,7 @@ def _prepare(path):
 
     import fake_hardware
     from boards.sim.actuator import Actuator
-    from host.fixed_export import export_bcm3
+    from host.calibration.fixed_export import export_bcm3
 
     board = fake_hardware.sim_board()
     cal_pwl = fake_hardware.model_calibration(board)

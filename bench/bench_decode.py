@@ -1,4 +1,4 @@
-"""Host frame decoder throughput: frames/s through host.frames.FrameDecoder (target >= 200,000).
+"""Host frame decoder throughput: frames/s through host.link.frames.FrameDecoder (target >= 200,000).
 
     .venv/bin/python bench/bench_decode.py [--frames N] [--records K]
 
@@ -17,7 +17,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from firmware import protocol as P  # noqa: E402
-from host.frames import FrameDecoder  # noqa: E402
+from host.link.frames import FrameDecoder  # noqa: E402
 
 
 def build_stream(n_frames, records, noise_every=1000):

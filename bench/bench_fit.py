@@ -16,9 +16,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from host.example_sweep import simulate_sweep  # noqa: E402
-from host.models import fit_model  # noqa: E402
-from host.sweep import sweep_from_arrays  # noqa: E402
+from host.fitting.example_sweep import simulate_sweep  # noqa: E402
+from host.fitting.models import fit_model  # noqa: E402
+from host.fitting.sweep import sweep_from_arrays  # noqa: E402
 
 BASELINES = ("pcm", "pcm-raw", "cheb", "spline", "pchip", "lut", "pwl")
 

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/bench_fixed_eval.py [--random N]
 
-Accuracy is measured at every ADC code against float64 (host/fixed_export.py), the worst
+Accuracy is measured at every ADC code against float64 (host/calibration/fixed_export.py), the worst
 intermediate by running the firmware functions on tracking ints, and the speed under the real
 MicroPython unix port (x64; a board is 10-50x slower, scale accordingly).
 """
@@ -17,10 +17,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 
-from host.example_sweep import simulate_sweep  # noqa: E402
-from host.fixed_export import export_bcm3, export_curve_table, export_poly, export_pwl  # noqa: E402
-from host.rational_bezier import evaluate, fit_bcm  # noqa: E402
-from host.sweep import load_sweep  # noqa: E402
+from host.fitting.example_sweep import simulate_sweep  # noqa: E402
+from host.calibration.fixed_export import export_bcm3, export_curve_table, export_poly, export_pwl  # noqa: E402
+from host.fitting.rational_bezier import evaluate, fit_bcm  # noqa: E402
+from host.fitting.sweep import load_sweep  # noqa: E402
 from micropython_runner import REPO, run_micropython  # noqa: E402
 
 KNEE = {"lx": 60.0, "rx": 3950.0, "weights": [1.0, 12.0, 12.0, 1.0], "handles": [0.0, 1.5, 58.5, 60.0]}
@@ -52,7 +52,7 @@ def accuracy(n_random):
     x, y = sweep_fits()
     t0 = time.perf_counter()
     fit3 = fit_bcm(x, y, 3)
-    row("bcm3, fit to host.example_sweep", export_bcm3(fit3.coefficients, 12))
+    row("bcm3, fit to host.fitting.example_sweep", export_bcm3(fit3.coefficients, 12))
     fit5 = fit_bcm(x, y, 5)
     k5 = export_curve_table(fit5, 12)
     row("table of the degree-5 fit (%d knots)" % k5[0], k5)

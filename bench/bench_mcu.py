@@ -245,12 +245,12 @@ def sim_codes(board):
 
 
 def calibration_files(board, out_dir):
-    """[(label, file name)] written by host.calibration_file from fits to the simulated actuator."""
+    """[(label, file name)] written by host.calibration.file from fits to the simulated actuator."""
     sys.path.insert(0, str(REPO / "tests"))
     import fake_hardware
     from boards.sim.actuator import Actuator
-    from host.calibration_file import new_document, pot_section, write_calibration
-    from host.models import fit_model
+    from host.calibration.file import new_document, pot_section, write_calibration
+    from host.fitting.models import fit_model
 
     sim = json.loads((REPO / "boards" / "sim.json").read_text())
     sim["adc_bits"] = board["adc_bits"]
@@ -282,7 +282,7 @@ def calibration_files(board, out_dir):
 
 def stage(cpu, extra_calibration, tmp):
     march, board_name, _, _, _ = CPUS[cpu]
-    from host.flashing import mpy_cross_executable
+    from host.link.flashing import mpy_cross_executable
 
     board = json.loads((REPO / "boards" / (board_name + ".json")).read_text())
     # the bench drives PWM through its own machine: no pyb timers in the emulator
@@ -299,7 +299,7 @@ def stage(cpu, extra_calibration, tmp):
     if extra_calibration:
         # the file's sections as they are, labelled for this bench's board (the firmware refuses
         # a calibration made for another board, e.g. the virtual board's "sim")
-        from host.calibration_file import read_calibration, write_calibration
+        from host.calibration.file import read_calibration, write_calibration
 
         doc = read_calibration(extra_calibration)
         doc["board"] = board["name"]

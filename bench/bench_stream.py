@@ -19,8 +19,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from host.board_client import BoardClient  # noqa: E402
-from host.virtual_board import VirtualBoard  # noqa: E402
+from host.link.board_client import BoardClient  # noqa: E402
+from host.link.virtual_board import VirtualBoard  # noqa: E402
 
 MPREMOTE = str(Path(sys.executable).parent / "mpremote")
 

@@ -19,10 +19,10 @@ import numpy as np
 REPO = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(REPO))
 
-from host.compare import parse_orders  # noqa: E402
-from host.fit_result import residual_stats  # noqa: E402
-from host.rational_bezier import fit_bcm, fit_bcm_global  # noqa: E402
-from host.sweep import load_sweep  # noqa: E402
+from host.fitting.compare import parse_orders  # noqa: E402
+from host.fitting.fit_result import residual_stats  # noqa: E402
+from host.fitting.rational_bezier import fit_bcm, fit_bcm_global  # noqa: E402
+from host.fitting.sweep import load_sweep  # noqa: E402
 
 REALDATA = REPO.parent / "shared" / "realdata"
 

@@ -22,7 +22,7 @@ r * max|p_i - f|, so the position error stays below ~2**-14 of the handle spread
 the curve. The terms are then aligned to the largest and blended one by one into a running
 weighted mean with Q16 shares, so the point never leaves the range of the handles.
 
-k layout (a flat int sequence, array('i') on the board; written by host/fixed_export.py):
+k layout (a flat int sequence, array('i') on the board; written by host/calibration/fixed_export.py):
 
     k[0]      S     input shift: codes are scaled by 2**S, S = 29 - adc_bits
     k[1]      LX    lowest pot output lx in codes * 2**S (rounded), 0 <= LX

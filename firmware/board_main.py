@@ -28,7 +28,7 @@ def _exists(path):
 
 def recover_calibration(path):
     """Finish an install that stopped between moving the old calibration aside and moving the
-    new one in (only possible on FAT, see host/flashing.py): put the old one back."""
+    new one in (only possible on FAT, see host/link/flashing.py): put the old one back."""
     old = path + ".old"
     if not _exists(path) and _exists(old):
         os.rename(old, path)

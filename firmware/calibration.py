@@ -1,6 +1,6 @@
 """The calibration file on the board: verify it, then hand the control step its integer constants.
 
-File format (written by host/calibration_file.py), schema 2: a JSON document a person can read,
+File format (written by host/calibration/file.py), schema 2: a JSON document a person can read,
 
     {"format": "lsea-kit calibration", "schema": 2, "crc32": <int>,
     "payload": {

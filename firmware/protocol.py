@@ -13,8 +13,8 @@ The board's USB serial port also carries the MicroPython REPL, so:
     CRC32 of everything before it (binascii.crc32)
   The host decoder skips anything that is not a valid frame (REPL text, banners, noise).
 
-Imported by firmware/link.py (board side), host/frames.py, host/board_client.py and
-host/protocol_doc.py (which renders docs/protocol.md from COMMANDS, FRAME_TYPES and FIELDS).
+Imported by firmware/link.py (board side), host/link/frames.py, host/link/board_client.py and
+host/link/protocol_doc.py (which renders docs/protocol.md from COMMANDS, FRAME_TYPES and FIELDS).
 """
 
 import binascii

@@ -5,7 +5,7 @@ the knot codes and integer interpolation between the two neighbouring knots, cla
 values outside the table. It serves the host's `lut` and `pwl` models and any curve tabulated
 densely (e.g. a BCM of degree > 3, whose integer form would not stay within 31 bits).
 
-k layout (a flat int sequence, array('i') on the board; written by host/fixed_export.py):
+k layout (a flat int sequence, array('i') on the board; written by host/calibration/fixed_export.py):
 
     k[0]            N   number of knots (>= 2)
     k[1]            S   input shift: the code is scaled to code << S (S = 16 - adc_bits)

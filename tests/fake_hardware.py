@@ -136,7 +136,7 @@ def model_calibration(board=None, n_points=61):
     import numpy as np
 
     from boards.sim.actuator import Actuator
-    from host.fixed_export import export_poly, export_pwl
+    from host.calibration.fixed_export import export_poly, export_pwl
 
     board = board or sim_board()
     params = dict(board["actuator"], adc_bits=board["adc_bits"])
@@ -170,12 +170,12 @@ def model_calibration(board=None, n_points=61):
 
 def bcm3_pot_fits(board, noisy=False, seed=1):
     """{pot: FitResult}: each pot's code against its own wiper travel over the stroke (601
-    places), fitted by the paper's rational cubic Bezier (host.models). `noisy` takes one noisy
+    places), fitted by the paper's rational cubic Bezier (host.fitting.models). `noisy` takes one noisy
     ADC read per place (seeded) instead of the noise-free code."""
     import numpy as np
 
     from boards.sim.actuator import Actuator
-    from host.models import fit_model
+    from host.fitting.models import fit_model
 
     world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), seed)
     xs = np.linspace(0.0, 60.0, 601)

@@ -8,11 +8,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.interpolate import BSpline, PchipInterpolator
 
-from host.models import fit_model
-from host.piecewise_linear import fit_lut, fit_pwl, grow_knots, lsq_knot_values
-from host.polynomial import fit_chebyshev, fit_pcm, fit_pcm_raw
-from host.spline import cubic_knot_vector, fit_pchip, fit_spline
-from host.sweep import load_sweep
+from host.fitting.models import fit_model
+from host.fitting.piecewise_linear import fit_lut, fit_pwl, grow_knots, lsq_knot_values
+from host.fitting.polynomial import fit_chebyshev, fit_pcm, fit_pcm_raw
+from host.fitting.spline import cubic_knot_vector, fit_pchip, fit_spline
+from host.fitting.sweep import load_sweep
 
 BASELINES = ("pcm", "pcm-raw", "cheb", "spline", "pchip", "lut", "pwl")
 CODES = np.linspace(0.0, 4095.0, 1500)  # ADC codes: the range the paper's polyfit struggles with

@@ -9,9 +9,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware.bcm_fixed import bcm3, invalid
-from host.fixed_export import TrackedInt, export_bcm3, export_pot, track
-from host.models import fit_model
-from host.sweep import load_sweep
+from host.calibration.fixed_export import TrackedInt, export_bcm3, export_pot, track
+from host.fitting.models import fit_model
+from host.fitting.sweep import load_sweep
 from test_fixed_on_micropython import evaluate_on_micropython
 
 CODES = np.arange(4096)

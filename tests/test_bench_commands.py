@@ -10,8 +10,8 @@ import pytest
 
 from boards.sim import bench_rig, machine
 from host import cli
-from host.telemetry_log import load
-from host.virtual_board import parse_load
+from host.link.telemetry_log import load
+from host.link.virtual_board import parse_load
 from micropython_runner import REPO
 
 from test_flash import sim_calibration
@@ -112,7 +112,7 @@ def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys)
     stroke limits) and --json gives the firmware's object."""
     import time
 
-    from host.virtual_board import VirtualBoard
+    from host.link.virtual_board import VirtualBoard
 
     with VirtualBoard(calibration=calibration) as vb:
         port = vb.path

@@ -1,4 +1,4 @@
-"""Host waits measured in the board's own time (host.board_client.BoardTime): settle() and
+"""Host waits measured in the board's own time (host.link.board_client.BoardTime): settle() and
 acquire.collect() give the actuator the same board seconds whatever the host's wall clock does,
 so a virtual board that falls behind on a loaded machine is not cut short. The board here is a
 fake link (the hardware side), whose records carry their t_us and are handed out one per poll
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from firmware import protocol as P
-from host import board_client
-from host.board_client import BoardTime, settle
+from host.link import board_client
+from host.link.board_client import BoardTime, settle
 from host.guided import acquire
 
 T = P.FIELDS.index("t_us")

@@ -10,7 +10,7 @@ import pytest
 
 import fake_hardware
 from firmware.calibration import load_calibration
-from host.calibration_file import read_calibration, write_calibration
+from host.calibration.file import read_calibration, write_calibration
 from host.guided import flow
 from host.guided.outcome import StepOutcome
 

@@ -13,10 +13,10 @@ from hypothesis import strategies as st
 
 from firmware.calibration import CalibrationError, convert, load_calibration, payload_crc
 from firmware.poly_fixed import poly
-from host.calibration_file import new_document, poly_section, pot_section, read_calibration, update_section, write_calibration
+from host.calibration.file import new_document, poly_section, pot_section, read_calibration, update_section, write_calibration
 from host.errors import UserError
-from host.fit_result import FitResult
-from host.fixed_export import bcm_float
+from host.fitting.fit_result import FitResult
+from host.calibration.fixed_export import bcm_float
 from micropython_runner import REPO, run_micropython
 
 KNEE = {"lx": 60.0, "rx": 3950.0, "weights": [1.0, 12.0, 12.0, 1.0], "handles": [0.0, 1.5, 58.5, 60.0]}
@@ -202,7 +202,7 @@ def test_failed_serialisation_leaves_the_old_file(tmp_path, monkeypatch):
     def broken(*args, **kwargs):
         raise RuntimeError("disk full, say")
 
-    monkeypatch.setattr("host.calibration_file.os.fsync", broken)
+    monkeypatch.setattr("host.calibration.file.os.fsync", broken)
     with pytest.raises(RuntimeError):
         write_calibration(path, full_document(board="new"))
     assert path.read_bytes() == before
@@ -221,7 +221,7 @@ def test_killed_writer_leaves_the_old_file(tmp_path):
         "import os, signal, sys\n"
         "sys.path.insert(0, %r)\n"
         "sys.path.insert(0, %r)\n"
-        "import host.calibration_file as cf\n"
+        "import host.calibration.file as cf\n"
         "os.replace = lambda a, b: os.kill(os.getpid(), signal.SIGKILL)\n"
         "cf.write_calibration(%r, cf.new_document(board='new'))\n" % (str(REPO), str(REPO / "tests"), str(path))
     )

@@ -8,8 +8,8 @@ import sys
 import numpy as np
 import pytest
 
-from host.compare import compare_models, parse_models, parse_orders, write_outputs
-from host.noise_floor import estimate_noise
+from host.fitting.compare import compare_models, parse_models, parse_orders, write_outputs
+from host.fitting.noise_floor import estimate_noise
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -41,7 +41,7 @@ def test_parse_orders_and_models():
 
 
 def test_compare_scores_every_model_and_order(tmp_path):
-    from host.sweep import load_sweep
+    from host.fitting.sweep import load_sweep
 
     sweep = load_sweep(_knee_sweep(tmp_path / "knee.csv"))
     noise = estimate_noise(sweep.x, sweep.y)
@@ -123,7 +123,7 @@ def test_cli_missing_file_is_one_line(tmp_path):
 
 
 def test_pwl_objective_never_rises_with_the_order_in_a_comparison(realdata_dir):
-    from host.sweep import load_sweep
+    from host.fitting.sweep import load_sweep
 
     # this short real curve put independent free-knot searches in worse optima at 12 knots than at 11
     sweep = load_sweep(realdata_dir / "esp32_adc_yasirfaur.csv")
@@ -134,9 +134,9 @@ def test_pwl_objective_never_rises_with_the_order_in_a_comparison(realdata_dir):
 
 
 def test_bcm_is_warm_started_from_the_previous_degree():
-    from host.example_sweep import DEFAULT_PATH
-    from host.models import fit_model
-    from host.sweep import load_sweep
+    from host.fitting.example_sweep import DEFAULT_PATH
+    from host.fitting.models import fit_model
+    from host.fitting.sweep import load_sweep
 
     # each degree starts from the previous row's fit, elevated: the objective never rises with
     # the degree, and the rows are as good as independent fits (each of which refits the degrees
@@ -150,7 +150,7 @@ def test_bcm_is_warm_started_from_the_previous_degree():
 
 
 def test_bcm_fits_each_degree_once(monkeypatch):
-    import host.rational_bezier as rb
+    import host.fitting.rational_bezier as rb
 
     calls, real = [], rb.fit_bcm
 

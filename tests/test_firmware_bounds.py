@@ -75,7 +75,7 @@ class _Finder(importlib.abc.MetaPathFinder):
 
 @pytest.fixture
 def instrumented():
-    import host.fixed_export  # noqa: F401  (host code keeps the plain firmware modules it imports)
+    import host.calibration.fixed_export  # noqa: F401  (host code keeps the plain firmware modules it imports)
 
     saved = {k: v for k, v in sys.modules.items() if k == "firmware" or k.startswith("firmware.")}
     for k in saved:

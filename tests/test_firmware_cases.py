@@ -25,9 +25,9 @@ def data_path(tmp_path_factory):
 
 def bcm3_calibration(board):
     """The model calibration with both pots as bcm3 (the paper's rational cubic Bezier, fitted by
-    host.models and exported by host.fixed_export.export_bcm3), as bench/bench_control_step.py
+    host.fitting.models and exported by host.calibration.fixed_export.export_bcm3), as bench/bench_control_step.py
     makes it: each pot's noise-free code against its own wiper travel over the stroke."""
-    from host.fixed_export import export_bcm3
+    from host.calibration.fixed_export import export_bcm3
 
     cal = fake_hardware.model_calibration(board)
     for name, fit in fake_hardware.bcm3_pot_fits(board).items():

@@ -8,7 +8,7 @@ import pytest
 import fake_hardware
 import test_firmware_sim_cases as sim_cases
 from firmware.calibration import SCHEMA
-from host.calibration_file import encode_document
+from host.calibration.file import encode_document
 from micropython_runner import run_case
 
 TARGETS = [10000, 45000, 30000, 5000, 55000]
@@ -86,7 +86,7 @@ def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_pat
     5-10-15-10-5 N each way: the load's true force and the firmware's estimate both within 2 %
     of the target, the project's target (the paper: up to 7.0 % and 5.6 %). Without the friction
     term the same data leave the 5 N steps several % off, so this could fail."""
-    from host.fixed_export import export_poly
+    from host.calibration.fixed_export import export_poly
     from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N, fit_force
 
     path = tmp_path / "cal.json"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from host.cli import main
-from host.example_sweep import DEFAULT_PATH
+from host.fitting.example_sweep import DEFAULT_PATH
 
 EXAMPLE = str(DEFAULT_PATH)
 
@@ -59,7 +59,7 @@ def test_auto_reports_a_reason(capsys):
 
 def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
     from firmware.calibration import convert, load_calibration
-    from host.rational_bezier import evaluate
+    from host.fitting.rational_bezier import evaluate
 
     path = tmp_path / "calib.json"
     first = _json(capsys, EXAMPLE, "--out", str(path))
@@ -77,7 +77,7 @@ def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
 
 def test_out_records_board_and_pot_identity(tmp_path, capsys):
     from firmware.calibration import load_calibration
-    from host.calibration_file import read_calibration
+    from host.calibration.file import read_calibration
 
     path = str(tmp_path / "calib.json")
     out = _json(capsys, EXAMPLE, "--out", path, "--board", "bench-rig-1", "--pot-id", "P1-0042")
@@ -186,7 +186,7 @@ def test_demo_writes_report_plots_and_calibration(tmp_path, capsys):
 
 
 def test_model_without_its_module_is_a_clear_error(monkeypatch, capsys):
-    from host import models
+    from host.fitting import models
 
     monkeypatch.setitem(models.MODELS, "pwl", ("host.not_written_yet", "fit_pwl", "placeholder"))
     assert main(["fit", EXAMPLE, "--model", "pwl"]) == 2

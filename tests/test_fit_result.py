@@ -5,7 +5,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.models import MODELS, fit_model
+from host.fitting.models import MODELS, fit_model
 
 ORDERS = {"bcm": 3, "pcm": 5, "pcm-raw": 5, "cheb": 5, "spline": 6, "pchip": 6, "lut": 8, "pwl": 5}
 
@@ -62,14 +62,14 @@ def _dip(x, at=30001.0):
 
 
 def fit_dip(x, y, order):
-    from host.fit_result import FitResult
+    from host.fitting.fit_result import FitResult
 
     return FitResult("dip", order, 1, {}, (float(np.min(x)), float(np.max(x))), curve=_dip)
 
 
 def test_monotone_check_covers_every_code_of_a_16_bit_adc(monkeypatch):
-    from host import models
-    from host.fit_result import FitResult, is_monotone
+    from host.fitting import models
+    from host.fitting.fit_result import FitResult, is_monotone
 
     codes = np.arange(0, 65536, 3.0)
     r = FitResult("dip", 1, 1, {}, (0.0, 65535.0), curve=_dip)

@@ -9,7 +9,7 @@ compared bit for bit against the in-process CPython run.
 import shutil
 import subprocess
 
-from host.fixed_export import export_bcm3, export_poly, export_pwl
+from host.calibration.fixed_export import export_bcm3, export_poly, export_pwl
 from micropython_runner import REPO, run_micropython
 
 FIRMWARE_MODULES = ("bcm_fixed", "pwl_fixed", "poly_fixed", "calibration")

@@ -14,10 +14,10 @@ import pytest
 
 from firmware.calibration import load_calibration
 from host import cli
-from host.board_client import BoardClient
-from host.calibration_file import encode_document, new_document, read_calibration, write_calibration
-from host.flashing import flash
-from host.virtual_board import VirtualBoard
+from host.link.board_client import BoardClient
+from host.calibration.file import encode_document, new_document, read_calibration, write_calibration
+from host.link.flashing import flash
+from host.link.virtual_board import VirtualBoard
 
 import fake_hardware
 
@@ -293,7 +293,7 @@ def test_flash_refuses_bad_files_and_another_board_before_touching_the_board(cal
 def test_flash_reads_back_every_file_it_installed(calibrations, monkeypatch, tmp_path):
     """The CRCs the board reports after the swap are compared with the files: a board that
     holds something else (here: mpremote's read-back reports other CRCs) fails the flash."""
-    import host.flashing as flashing
+    import host.link.flashing as flashing
 
     calls = []
 

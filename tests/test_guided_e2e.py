@@ -12,7 +12,7 @@ import re
 import numpy as np
 import pytest
 
-from host.calibration_file import read_calibration
+from host.calibration.file import read_calibration
 from host.cli import build_parser
 from host.commands.calibrate import calibrate
 from host.errors import UserError

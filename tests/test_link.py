@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 from firmware import protocol as P
 from firmware.app import App
 from firmware.link import Link
-from host.frames import FrameDecoder
+from host.link.frames import FrameDecoder
 from micropython_runner import REPO, run_micropython
 
 BOARD = str(REPO / "boards" / "sim.json")

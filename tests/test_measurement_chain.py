@@ -10,7 +10,7 @@ import pytest
 import fake_hardware
 import firmware_chain_cases
 from firmware.calibration import SCHEMA, convert, load_calibration
-from host.calibration_file import encode_document
+from host.calibration.file import encode_document
 from firmware.measurement import STROKE_CLAMP_UM
 from firmware.poly_fixed import poly
 from micropython_runner import run_case

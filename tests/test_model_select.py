@@ -2,11 +2,11 @@
 
 import numpy as np
 
-from host.model_select import candidates, select_model
-from host.noise_floor import curve_floor
-from host.rational_bezier import evaluate
-from host.sweep import load_sweep
-from host.example_sweep import DEFAULT_PATH
+from host.fitting.model_select import candidates, select_model
+from host.fitting.noise_floor import curve_floor
+from host.fitting.rational_bezier import evaluate
+from host.fitting.sweep import load_sweep
+from host.fitting.example_sweep import DEFAULT_PATH
 
 
 def test_candidates_are_firmware_models_cheapest_first():

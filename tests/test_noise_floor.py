@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from host.noise_floor import estimate_noise
+from host.fitting.noise_floor import estimate_noise
 
 
 def _knee(x):

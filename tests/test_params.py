@@ -12,8 +12,8 @@ import pytest
 from firmware import saved_params
 from firmware.controller import PARAMS
 from host import cli
-from host.board_client import BoardClient
-from host.virtual_board import VirtualBoard
+from host.link.board_client import BoardClient
+from host.link.virtual_board import VirtualBoard
 from micropython_runner import run_micropython
 
 from test_flash import sim_calibration

@@ -3,7 +3,8 @@ that cannot exist here), and the probe and the automatic choice against a virtua
 
 import pytest
 
-from host import cli, ports
+from host import cli
+from host.link import ports
 from host.errors import UserError
 
 PICO = ("/dev/ttyACM0", 0x2E8A, 0x0005, "Board in FS mode")
@@ -37,7 +38,7 @@ def test_host_ports_lists_each_port_with_what_is_on_it(monkeypatch, capsys):
 def test_port_auto_and_the_probe_find_a_board_running_our_firmware(monkeypatch, capsys):
     """A virtual board stands in for a Pico on USB: listed with the RP2040's ids, `host status`
     with no --port talks to it, and `host ports --probe` says lsea-kit answers there."""
-    from host.virtual_board import VirtualBoard
+    from host.link.virtual_board import VirtualBoard
 
     with VirtualBoard() as vb:
         monkeypatch.setattr(ports, "list_ports", lambda: [(vb.path, 0x2E8A, 0x0005, "Board in FS mode"), MOUSE])

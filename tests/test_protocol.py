@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware import protocol as P
-from host.frames import FrameDecoder
+from host.link.frames import FrameDecoder
 
 
 def telemetry_frame(seq, records, dropped=0):

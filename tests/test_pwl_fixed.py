@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware.pwl_fixed import pwl
-from host.fixed_export import bcm_float, export_curve_table, export_pwl
+from host.calibration.fixed_export import bcm_float, export_curve_table, export_pwl
 from test_fixed_on_micropython import evaluate_on_micropython
 
 CODES = np.arange(4096)

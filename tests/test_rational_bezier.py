@@ -5,12 +5,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from host.fit_result import residual_stats
-from host.models import fit_model
-from host.noise_floor import estimate_noise
-from host.rational_bezier import LN60, elevate, evaluate, fit_bcm, fit_bcm_global, reverses
-from host.example_sweep import DEFAULT_PATH
-from host.sweep import load_sweep
+from host.fitting.fit_result import residual_stats
+from host.fitting.models import fit_model
+from host.fitting.noise_floor import estimate_noise
+from host.fitting.rational_bezier import LN60, elevate, evaluate, fit_bcm, fit_bcm_global, reverses
+from host.fitting.example_sweep import DEFAULT_PATH
+from host.fitting.sweep import load_sweep
 
 
 

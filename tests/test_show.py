@@ -3,7 +3,7 @@
 import json
 
 from host import cli
-from host.calibration_file import poly_section, write_calibration
+from host.calibration.file import poly_section, write_calibration
 
 from test_calibration_file import full_document
 

@@ -230,8 +230,8 @@ def test_a_real_measured_adc_curve_as_the_pot_is_calibrated_to_its_noise_floor(r
     import numpy as np
 
     from boards.sim.actuator import Actuator
-    from host.model_select import select_model
-    from host.noise_floor import estimate_noise
+    from host.fitting.model_select import select_model
+    from host.fitting.noise_floor import estimate_noise
 
     params = json.loads((REPO / "boards" / "sim.json").read_text())["actuator"]
     params["pots"]["pot1"] = _table_pot_params(

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from host.errors import UserError
-from host.sweep import MIN_POINTS, load_sweep, sweep_from_arrays
+from host.fitting.sweep import MIN_POINTS, load_sweep, sweep_from_arrays
 
 
 def _write(tmp_path, text, name="s.csv"):

@@ -7,7 +7,7 @@ from firmware.controller import MODE_NAMES
 from firmware.safety import FAULT_NAMES
 from firmware.telemetry import FIELDS
 from host import cli
-from host.telemetry_log import UNITS, load
+from host.link.telemetry_log import UNITS, load
 
 from test_flash import sim_calibration
 

@@ -1,4 +1,4 @@
-"""Step-response figures (host/step_response.py) on responses with known answers, and `host tune`
+"""Step-response figures (host/fitting/step_response.py) on responses with known answers, and `host tune`
 on the virtual board: the default gains settle, a gain set that oscillates is reported as such,
 a grid recommends a settling set, the plot is written and the board's gains are put back."""
 
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from host import cli
-from host.step_response import analyse, best
-from host.virtual_board import VirtualBoard
-from host.board_client import BoardClient
+from host.fitting.step_response import analyse, best
+from host.link.virtual_board import VirtualBoard
+from host.link.board_client import BoardClient
 
 from test_flash import sim_calibration
 

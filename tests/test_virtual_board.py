@@ -13,11 +13,11 @@ import serial
 from firmware import protocol as P
 from firmware.app import VERSION
 from host import cli
-from host.board_client import BoardClient, BoardTime
+from host.link.board_client import BoardClient, BoardTime
 from host.errors import UserError
-from host.frames import FrameDecoder
-from host.telemetry_log import load, record
-from host.virtual_board import VirtualBoard
+from host.link.frames import FrameDecoder
+from host.link.telemetry_log import load, record
+from host.link.virtual_board import VirtualBoard
 
 import host_processes
 
@@ -246,7 +246,7 @@ def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
         BoardClient(vboard.path, require_calibration=True)
     root = tmp_path / "flash"
     root.mkdir()
-    from host.virtual_board import DEFAULT_BOARD, install_factory
+    from host.link.virtual_board import DEFAULT_BOARD, install_factory
 
     install_factory(root, DEFAULT_BOARD)
     app = root / "firmware" / "app.py"

@@ -4,7 +4,7 @@ import sys
 import time
 from pathlib import Path
 
-from host.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
+from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
 from host.errors import UserError
 from host.numbers import ranged
 
@@ -36,8 +36,8 @@ def add_parser(subparsers):
 
 
 def run(args):
-    from host.noise_floor import estimate_noise
-    from host.sweep import load_sweep
+    from host.fitting.noise_floor import estimate_noise
+    from host.fitting.sweep import load_sweep
 
     try:
         orders = parse_orders(args.orders)

@@ -53,7 +53,7 @@ def _calibration(out_dir, fit, sweep, say):
             crc = write_pot(path, pot, fit, bits)
     except UserError as exc:
         return str(exc)
-    from host.calibration_file import read_calibration
+    from host.calibration.file import read_calibration
 
     say("wrote %s (crc32 %08x)" % (path, crc))
     return path, crc, read_calibration(path)["pot1"].get("fixed_check")
@@ -61,9 +61,9 @@ def _calibration(out_dir, fit, sweep, say):
 
 def run(args):
     from host.commands.fit import fit_sweep
-    from host.example_sweep import DEFAULT_PATH, write_sweep
-    from host.fit_plots import plot_fit
-    from host.sweep import load_sweep
+    from host.fitting.example_sweep import DEFAULT_PATH, write_sweep
+    from host.fitting.plots import plot_fit
+    from host.fitting.sweep import load_sweep
 
     say = note  # progress to stderr; the report's path (the result) to stdout
 

@@ -8,7 +8,7 @@ import sys
 import time
 
 from host.errors import UserError
-from host.models import MODELS
+from host.fitting.models import MODELS
 from host.numbers import ranged
 from host.terminal import note
 
@@ -72,9 +72,9 @@ def fit_sweep(sweep, model="bcm", order=None, bounds="data", budget=12, progress
     floors: noise_floor (the scatter, by direction), hysteresis (half the gap between directions)
     and curve_floor (what one curve of raw alone can reach: both combined), None when unknown.
     """
-    from host.model_select import select_model
-    from host.models import fit_model
-    from host.noise_floor import estimate_hysteresis, estimate_noise
+    from host.fitting.model_select import select_model
+    from host.fitting.models import fit_model
+    from host.fitting.noise_floor import estimate_hysteresis, estimate_noise
 
     _check_model_available(model)
     try:
@@ -101,7 +101,7 @@ def fit_sweep(sweep, model="bcm", order=None, bounds="data", budget=12, progress
 
 
 def adc_bits_of(sweep):
-    from host.sweep import _full_scale
+    from host.fitting.sweep import _full_scale
 
     fs = _full_scale(sweep.x)
     if fs is None:
@@ -113,10 +113,10 @@ def write_pot(path, pot, result, adc_bits, pot_id=None, board=None):
     """Write `result` as section `pot` of the calibration file (with the pot's and the board's
     identity when given); returns the file's CRC."""
     try:
-        from host.calibration_file import pot_section, update_section
+        from host.calibration.file import pot_section, update_section
     except ImportError:
-        raise UserError("calibration file support not available (host/calibration_file.py is missing)") from None
-    from host.rational_bezier import elevate
+        raise UserError("calibration file support not available (host/calibration/file.py is missing)") from None
+    from host.fitting.rational_bezier import elevate
 
     if result.model == "bcm" and result.order < 3:  # the firmware's bcm3 runs it after exact elevation
         coeffs = elevate(result.coefficients, 3)
@@ -172,7 +172,7 @@ def refusals(result, noise, span):
 
 
 def run(args):
-    from host.sweep import load_sweep
+    from host.fitting.sweep import load_sweep
 
     _check_model_available(args.model)
     say = (lambda msg: None) if args.json else note
@@ -194,7 +194,7 @@ def run(args):
     if reason:
         out["auto_reason"] = reason
     if args.plot:
-        from host.fit_plots import plot_fit
+        from host.fitting.plots import plot_fit
 
         say("drawing %s" % args.plot)
         try:

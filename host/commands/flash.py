@@ -1,8 +1,8 @@
 """`host flash`: compile and install the firmware, board file and calibration, then verify."""
 
 from host.errors import UserError
-from host.flashing import flash
-from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
+from host.link.flashing import flash
+from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
 
 def add_parser(subparsers):
@@ -26,12 +26,12 @@ def run(args):
     def progress(text):
         print(text, flush=True)
 
-    from host.ports import resolve
+    from host.link.ports import resolve
 
     args.port = resolve(args.port)
     if args.port == "sim":
-        from host.flashing import resolve_board
-        from host.virtual_board import VirtualBoard
+        from host.link.flashing import resolve_board
+        from host.link.virtual_board import VirtualBoard
 
         board_path, _ = resolve_board(args.board or "sim")
         with VirtualBoard(board=board_path, factory=False, load=args.load) as vb:

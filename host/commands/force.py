@@ -1,6 +1,6 @@
 """`host force --target N`: closed-loop force (spring deformation) control, then motor off."""
 
-from host.board_client import BoardError, add_port_arguments, open_board, settle
+from host.link.board_client import BoardError, add_port_arguments, open_board, settle
 from host.errors import UserError
 from host.numbers import ranged
 from host.terminal import end_progress, progress_line

@@ -1,6 +1,6 @@
 """`host move --to MM`: closed-loop position move of the output block, then motor off."""
 
-from host.board_client import add_port_arguments, open_board, settle
+from host.link.board_client import add_port_arguments, open_board, settle
 from host.errors import UserError
 from host.numbers import ranged
 from host.terminal import end_progress, progress_line

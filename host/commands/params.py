@@ -6,7 +6,7 @@ the host never carries a second copy that could disagree with the firmware it ta
 
 import json
 
-from host.board_client import add_port_arguments, open_board
+from host.link.board_client import add_port_arguments, open_board
 from host.errors import UserError
 
 

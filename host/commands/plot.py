@@ -4,7 +4,7 @@ import sys
 from pathlib import Path
 
 from host.errors import UserError
-from host.telemetry_plot import plot
+from host.link.telemetry_plot import plot
 
 
 def add_parser(subparsers):

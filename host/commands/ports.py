@@ -1,8 +1,8 @@
 """`host ports`: the serial ports on this machine, what is probably on each, and (--probe)
 whether lsea-kit firmware answers there."""
 
-from host import ports as port_list
-from host.ports import label
+from host.link import ports as port_list
+from host.link.ports import label
 
 
 def add_parser(subparsers):
@@ -13,7 +13,7 @@ def add_parser(subparsers):
 
 def probe(device):
     """'lsea-kit VERSION on BOARD' or why not."""
-    from host.board_client import BoardClient
+    from host.link.board_client import BoardClient
     from host.errors import UserError
 
     try:

@@ -1,6 +1,6 @@
 """`host reset`: name the latched faults, clear them, motor off and mode idle: ready to move."""
 
-from host.board_client import add_port_arguments, open_board
+from host.link.board_client import add_port_arguments, open_board
 
 
 def add_parser(subparsers):

@@ -3,8 +3,8 @@
 import json
 
 from firmware.calibration import parse_document
-from host.calibration_file import read_calibration
-from host.calibration_report import compare, describe
+from host.calibration.file import read_calibration
+from host.calibration.report import compare, describe
 
 
 def add_parser(subparsers):

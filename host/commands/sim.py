@@ -3,7 +3,7 @@
 import signal
 import time
 
-from host.virtual_board import DEFAULT_BOARD, LOAD_HELP, LOAD_METAVAR, VirtualBoard, parse_load
+from host.link.virtual_board import DEFAULT_BOARD, LOAD_HELP, LOAD_METAVAR, VirtualBoard, parse_load
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 

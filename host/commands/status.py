@@ -2,7 +2,7 @@
 
 import json
 
-from host.board_client import add_port_arguments, open_board
+from host.link.board_client import add_port_arguments, open_board
 
 # known fields first, in this order, with how to show them; any other field follows as it is
 LABELS = (

@@ -1,6 +1,6 @@
 """`host stop`: motor off, mode idle, and the board ready to move again."""
 
-from host.board_client import add_port_arguments, open_board
+from host.link.board_client import add_port_arguments, open_board
 from host.commands.reset import clear_faults
 
 

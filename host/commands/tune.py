@@ -1,13 +1,13 @@
 """`host tune position|force`: step responses of a closed loop, their figures, a plot, and with
---kp/--ki a small grid of gains tried and the best recommended (host/tuning.py)."""
+--kp/--ki a small grid of gains tried and the best recommended (host/guided/tuning.py)."""
 
 import json
 
-from host.board_client import add_port_arguments, open_board
+from host.link.board_client import add_port_arguments, open_board
 from host.errors import UserError
 from host.numbers import ranged
 from host.terminal import end_progress, progress_line
-from host.tuning import LOOPS, tune
+from host.guided.tuning import LOOPS, tune
 
 DEFAULTS = {  # mode -> (start, step, band) in the shown unit (mm or N)
     "position": (25.0, 5.0, 0.05),

@@ -1,10 +1,10 @@
 """Paper Fig. 3a from the run's own pot sweep: objective vs order for BCM, PCM and PWL.
 
-Uses host.compare (the same fits and scores as `host compare`) on the sweep the guided pot
+Uses host.fitting.compare (the same fits and scores as `host compare`) on the sweep the guided pot
 calibration logged, and writes fig3a.png/.md/.csv into the report directory.
 """
 
-from host.compare import compare_models, write_outputs
+from host.fitting.compare import compare_models, write_outputs
 
 ORDERS = list(range(2, 13))
 MODELS = ("bcm", "pcm", "pwl")

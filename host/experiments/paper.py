@@ -46,7 +46,7 @@ def paper_method_offline(pots, assembly, force):
 
     from host.guided.assembly_calibration import binned_peak, fit_df
     from host.guided.force_calibration import TAUT_N, fit_force
-    from host.models import fit_model
+    from host.fitting.models import fit_model
 
     out = {}
     for pot in ("pot1", "pot2"):

@@ -8,8 +8,8 @@
 
 import numpy as np
 
-from host.calibration_file import poly_section, pot_section, read_calibration, write_calibration
-from host.models import fit_model
+from host.calibration.file import poly_section, pot_section, read_calibration, write_calibration
+from host.fitting.models import fit_model
 
 
 def nominal_pot_section(raw, ref_mm, adc_bits, pot):

@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from firmware import protocol as P
-from host.board_client import NO_DATA_S, BoardTime, settle
+from host.link.board_client import NO_DATA_S, BoardTime, settle
 
 COL = {name: i for i, name in enumerate(P.FIELDS)}
 STREAM_HZ = 200
@@ -113,7 +113,7 @@ def sweep(client, duty, say=None):
 
 
 def hold(client, mode, target, field, tolerance, timeout_s=8.0, measure_s=0.3):
-    """Settle `mode` at `target` (through host.board_client.settle), then log `measure_s` more
+    """Settle `mode` at `target` (through host.link.board_client.settle), then log `measure_s` more
     seconds still in that mode: (settled, records of the measurement)."""
     reset(client)
     ok, _, _ = settle(client, mode, target, field, tolerance, timeout_s=timeout_s, hold_s=0.2)

@@ -18,7 +18,7 @@ import numpy as np
 
 from firmware.calibration import CalibrationError, convert, load_calibration
 from host.errors import UserError
-from host.calibration_file import poly_section
+from host.calibration.file import poly_section
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 

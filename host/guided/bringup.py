@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import UserError
-from host.flashing import REPO, mpy_cross_executable
+from host.link.flashing import REPO, mpy_cross_executable
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 from host.guided.rig import reference_mm, reference_scale

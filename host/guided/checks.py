@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from host.noise_floor import estimate_hysteresis, estimate_noise
+from host.fitting.noise_floor import estimate_hysteresis, estimate_noise
 
 
 @dataclass

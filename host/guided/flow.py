@@ -3,7 +3,7 @@
 Nothing is written before a step is accepted. Before the first accepted step changes an
 existing calibration file, the file is copied aside with the date in its name
 (calibration.json.20261124-001500.bak), so no run, however it ends, loses a calibration. Then
-the accepted sections are written one by one (host.calibration_file: update_section, atomic),
+the accepted sections are written one by one (host.calibration.file: update_section, atomic),
 the file is flashed and the firmware must report its CRC before the next step starts. When a
 full run accepts new pot curves, the file's Df and force sections go with the old curves they
 were measured through (the backup keeps them); single steps update only their own sections.
@@ -22,7 +22,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from host.calibration_file import POT_SECTIONS, new_document, read_calibration, update_section, write_calibration
+from host.calibration.file import POT_SECTIONS, new_document, read_calibration, update_section, write_calibration
 from host.errors import UserError
 from host.guided.checks import Limits
 

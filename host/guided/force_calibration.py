@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from host.calibration_file import friction_section, poly_section
+from host.calibration.file import friction_section, poly_section
 from host.errors import UserError
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
@@ -232,7 +232,7 @@ def _poly_text(c, var):
 
 
 def calibrate_force(session, rig, prompter, opts, calibration_path):
-    from host.calibration_file import read_calibration
+    from host.calibration.file import read_calibration
 
     doc = read_calibration(calibration_path) if calibration_path.exists() else {}
     if not doc.get("df"):

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from host.calibration_file import pot_section
+from host.calibration.file import pot_section
 from host.errors import UserError
 from host.guided import acquire, checks
 from host.guided.outcome import StepOutcome
@@ -52,7 +52,7 @@ def manual_sweep(session, rig, pot, points, prompter, say):
 
 def fit_pot(raw, ref, direction, adc_bits, model, order, budget=None):
     from host.commands.fit import fit_sweep
-    from host.sweep import sweep_from_arrays
+    from host.fitting.sweep import sweep_from_arrays
 
     sweep = sweep_from_arrays(raw, ref, direction, source="pot sweep")
     fit, floors, reason = fit_sweep(sweep, model=model, order=order, **({"budget": budget} if budget else {}))
@@ -61,7 +61,7 @@ def fit_pot(raw, ref, direction, adc_bits, model, order, budget=None):
 
 def calibrate_pots(session, rig, prompter, opts):
     """Both pots: sweep, check, fit. Returns a StepOutcome with sections pot1 and pot2."""
-    from host.fit_plots import plot_fit
+    from host.fitting.plots import plot_fit
 
     bits = session.board["adc_bits"]
     sections, lines, plots, data = {}, [], [], {}

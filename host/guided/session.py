@@ -2,20 +2,20 @@
 
 `--port sim` starts a virtual board here (not through open_board) because the calibration needs
 its filesystem root for the rig and must keep it alive while the client is closed for a flash.
-After each accepted step the calibration file is installed with host.flashing.flash (mpremote,
+After each accepted step the calibration file is installed with host.link.flashing.flash (mpremote,
 CRC check, soft reset) and the firmware must answer with the file's CRC.
 """
 
 from pathlib import Path
 
-from host.board_client import BoardClient
+from host.link.board_client import BoardClient
 from host.errors import UserError
-from host.flashing import REPO, resolve_board
+from host.link.flashing import REPO, resolve_board
 
 
 class Session:
     def __init__(self, port, board=None, calibration=None, say=print):
-        from host.ports import resolve
+        from host.link.ports import resolve
 
         self.port = resolve(port)
         self.board_arg = board
@@ -33,7 +33,7 @@ class Session:
 
     def __enter__(self):
         if self.port == "sim":
-            from host.virtual_board import VirtualBoard
+            from host.link.virtual_board import VirtualBoard
 
             self.board_path, self.board = resolve_board(self.board_arg or str(REPO / "boards" / "sim.json"))
             if not self.board.get("simulated"):
@@ -70,8 +70,8 @@ class Session:
 
     def flash(self, calibration):
         """Install `calibration` on the board; returns the CRC the firmware reports."""
-        from host.calibration_file import read_calibration
-        from host.flashing import flash
+        from host.calibration.file import read_calibration
+        from host.link.flashing import flash
 
         read_calibration(calibration)  # refuse a corrupt file before touching the board
         crc_file = file_crc32(calibration)
@@ -90,7 +90,7 @@ class Session:
     def flash_board(self, board_path):
         """Install the firmware with board file `board_path` (the calibration on the board stays)
         and use that board file from now on; returns the firmware's status."""
-        from host.flashing import flash
+        from host.link.flashing import flash
 
         self.client.close()
         self.client = None

@@ -17,8 +17,8 @@ import numpy as np
 from scipy.interpolate import BSpline, PchipInterpolator, make_lsq_spline
 from scipy.optimize import least_squares
 
-from host.fit_result import FitResult
-from host.piecewise_linear import lsq_knot_values
+from host.fitting.fit_result import FitResult
+from host.fitting.piecewise_linear import lsq_knot_values
 
 
 def _check(x, y, k, least):

@@ -1,6 +1,6 @@
 """A realistic simulated calibration sweep of a 60 mm linear pot with two knee points.
 
-`python -m host.example_sweep [PATH]` regenerates examples/sweep_60mm.csv (deterministic, seed 7).
+`python -m host.fitting.example_sweep [PATH]` regenerates examples/sweep_60mm.csv (deterministic, seed 7).
 The physical model is described in examples/README.md; in short:
 
 - the wiper position s (mm, 0..60) maps to a fraction of the supply through a resistive track
@@ -27,7 +27,7 @@ KNEE_WIDTH_MM = 1.2
 UNDERSHOOT, OVERSHOOT = -0.0018, 1.0015  # track fraction at s = 0 and s = 60 (beyond the rails)
 SEED = 7
 PER_DIRECTION = 900
-DEFAULT_PATH = Path(__file__).resolve().parent.parent / "examples" / "sweep_60mm.csv"
+DEFAULT_PATH = Path(__file__).resolve().parents[2] / "examples" / "sweep_60mm.csv"
 
 
 def _softplus(z, width):

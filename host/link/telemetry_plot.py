@@ -6,7 +6,7 @@ codes (pots, reference sensor) in their place instead of flat zeros."""
 
 import numpy as np
 
-from host.telemetry_log import CALIBRATED_FIELDS, load, uncalibrated
+from host.link.telemetry_log import CALIBRATED_FIELDS, load, uncalibrated
 
 MODE_TARGET_UNITS = {1: "duty", 2: "um", 3: "mN"}  # controller mode numbers: open_loop, position, force
 

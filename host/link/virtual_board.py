@@ -39,7 +39,7 @@ except ImportError:  # Windows
 
 from host.errors import UserError, install_hint
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 DEFAULT_BOARD = REPO / "boards" / "sim.json"
 MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'
 HEAP = "4M"

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from host.errors import UserError, install_hint
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 STAGING = "_new"
 MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'
 
@@ -132,7 +132,7 @@ def mpremote_executable():
 
 def build(board, out_dir):
     """Compile the firmware for `board` into out_dir; returns [(local file, board path)]."""
-    from host.virtual_board import firmware_sources
+    from host.link.virtual_board import firmware_sources
 
     files = []
     march = board["mpy_march"]
@@ -209,7 +209,7 @@ def check_files(board_path, calibration=None):
 
 def identify(port):
     """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
-    from host.board_client import BoardClient
+    from host.link.board_client import BoardClient
 
     try:
         with BoardClient(port, check=False) as client:
@@ -263,7 +263,7 @@ def flash(port, board_name="sim", calibration=None, progress=print, replace_boar
             if int(got.get(name, -1)) != crc:
                 raise UserError("verification failed: %s on the board has CRC %s, expected %d" % (name, got.get(name), crc))
     progress("resetting and checking the firmware answers")
-    from host.board_client import BoardClient
+    from host.link.board_client import BoardClient
 
     with BoardClient(port, check=False) as client:
         client.soft_reset()

@@ -24,7 +24,7 @@ import numpy as np
 from numpy.polynomial import Chebyshev
 from numpy.polynomial import polynomial as P
 
-from host.fit_result import FitResult
+from host.fitting.fit_result import FitResult
 
 
 def _check(x, y, order):

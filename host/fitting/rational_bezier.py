@@ -31,7 +31,7 @@ from scipy.linalg import solve_triangular
 from scipy.optimize import differential_evolution, lsq_linear
 from scipy.special import comb
 
-from host.fit_result import FitResult, check_points
+from host.fitting.fit_result import FitResult, check_points
 
 LN60 = math.log(60.0)
 WIDEN = 0.10  # handle bounds: reference range widened by this share of it on each side

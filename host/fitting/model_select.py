@@ -13,7 +13,7 @@ take the most accurate candidate within the parameter budget (default 12 numbers
 import importlib
 from dataclasses import dataclass, field
 
-from host.models import fit_model
+from host.fitting.models import fit_model
 
 BCM_DEGREES = (1, 2, 3)  # what firmware/bcm_fixed.bcm3 can evaluate (after degree elevation)
 DEFAULT_BUDGET = 12
@@ -29,7 +29,7 @@ class Selection:
 
 def _pwl_available():
     try:
-        importlib.import_module("host.piecewise_linear")
+        importlib.import_module("host.fitting.piecewise_linear")
         return True
     except ImportError:
         return False

@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from host.errors import UserError
-from host.noise_floor import estimate_noise
+from host.fitting.noise_floor import estimate_noise
 
 MIN_POINTS = 20  # fewer cannot pin down a 7-parameter BCM-3 with any redundancy
 MIN_COVERAGE = 0.25  # of the ADC full scale, when raw looks like ADC codes

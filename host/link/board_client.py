@@ -17,7 +17,7 @@ import serial
 
 from firmware import protocol as P
 from host.errors import UserError
-from host.frames import FrameDecoder
+from host.link.frames import FrameDecoder
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 NO_DATA_S = 3.0  # wall-clock seconds without a telemetry record: the board stopped streaming
@@ -213,10 +213,10 @@ class BoardClient:
 
 class open_board:
     """Context manager: a BoardClient on `port`; `port == "sim"` starts a virtual board first,
-    with `load` (a host.virtual_board.parse_load dict) hooked on its block."""
+    with `load` (a host.link.virtual_board.parse_load dict) hooked on its block."""
 
     def __init__(self, port, board=None, calibration=None, load=None, **client_options):
-        from host.ports import resolve
+        from host.link.ports import resolve
 
         self.port = resolve(port)
         self.board = board
@@ -229,7 +229,7 @@ class open_board:
     def __enter__(self):
         port = self.port
         if port == "sim":
-            from host.virtual_board import DEFAULT_BOARD, VirtualBoard
+            from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
 
             self.virtual = VirtualBoard(board=self.board or DEFAULT_BOARD, calibration=self.calibration, load=self.load)
             port = self.virtual.start()
@@ -255,7 +255,7 @@ class open_board:
 
 def add_port_arguments(parser):
     """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
-    from host.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
+    from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
     parser.add_argument("--port", default="auto",
                         help="serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this "

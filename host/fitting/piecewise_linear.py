@@ -19,7 +19,7 @@ outside), the form the firmware's fixed-point `pwl` runs.
 import numpy as np
 from scipy.optimize import least_squares
 
-from host.fit_result import FitResult
+from host.fitting.fit_result import FitResult
 
 # Weight of the slope-change penalty relative to the data term. It only decides values that the
 # data leave free (a knot span with no samples): those knots then lie on the straight line

@@ -35,7 +35,7 @@ from firmware.calibration import (
     pot_constants,
 )
 from host.errors import UserError
-from host.fixed_export import export_poly, export_pot
+from host.calibration.fixed_export import export_poly, export_pot
 
 SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION,)
 INFO_KEYS = ("board", "date", "pots")

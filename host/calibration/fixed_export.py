@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from firmware import bcm_fixed, poly_fixed, pwl_fixed
-from host.rational_bezier import evaluate as bcm_float  # the float64 reference curve
+from host.fitting.rational_bezier import evaluate as bcm_float  # the float64 reference curve
 
 LIMIT = 2**30  # the 31-bit small-int range of a 32-bit MicroPython port
 UM_PER_MM = 1000.0

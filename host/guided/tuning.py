@@ -1,5 +1,5 @@
 """Gain tuning on a board: record step responses of the position or force loop for one or more
-gain sets, judge each (host/step_response.py) and pick the best.
+gain sets, judge each (host/fitting/step_response.py) and pick the best.
 
 A trial holds the start value until it has settled, then streams telemetry, changes the target
 by one step and records for a fixed span of the board's own time (BoardTime). Between trials
@@ -13,9 +13,9 @@ import time
 import numpy as np
 
 from firmware import protocol as P
-from host.board_client import NO_DATA_S, BoardTime, settle
+from host.link.board_client import NO_DATA_S, BoardTime, settle
 from host.errors import UserError
-from host.step_response import analyse, best
+from host.fitting.step_response import analyse, best
 
 # mode -> (telemetry field judged, gain parameters, unit of the field, scale to the shown unit)
 LOOPS = {

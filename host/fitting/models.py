@@ -8,18 +8,18 @@ statistics every model shares, so the numbers are comparable across models.
 import importlib
 import time
 
-from host.fit_result import is_monotone, residual_stats
+from host.fitting.fit_result import is_monotone, residual_stats
 
 # name -> (module, function, what it is)
 MODELS = {
-    "bcm": ("host.rational_bezier", "fit_bcm", "rational Bernstein (Bezier) curve of degree n, the paper's BCM"),
-    "pcm": ("host.polynomial", "fit_pcm", "polynomial of order n on x scaled to [0, 1]"),
-    "pcm-raw": ("host.polynomial", "fit_pcm_raw", "polynomial of order n on raw x, as the paper's polyfit"),
-    "cheb": ("host.polynomial", "fit_chebyshev", "Chebyshev series of order n"),
-    "spline": ("host.spline", "fit_spline", "cubic spline with n knots"),
-    "pchip": ("host.spline", "fit_pchip", "monotone cubic (PCHIP) with n knots"),
-    "lut": ("host.piecewise_linear", "fit_lut", "piecewise-linear table with n evenly spaced points"),
-    "pwl": ("host.piecewise_linear", "fit_pwl", "piecewise-linear with n free knots"),
+    "bcm": ("host.fitting.rational_bezier", "fit_bcm", "rational Bernstein (Bezier) curve of degree n, the paper's BCM"),
+    "pcm": ("host.fitting.polynomial", "fit_pcm", "polynomial of order n on x scaled to [0, 1]"),
+    "pcm-raw": ("host.fitting.polynomial", "fit_pcm_raw", "polynomial of order n on raw x, as the paper's polyfit"),
+    "cheb": ("host.fitting.polynomial", "fit_chebyshev", "Chebyshev series of order n"),
+    "spline": ("host.fitting.spline", "fit_spline", "cubic spline with n knots"),
+    "pchip": ("host.fitting.spline", "fit_pchip", "monotone cubic (PCHIP) with n knots"),
+    "lut": ("host.fitting.piecewise_linear", "fit_lut", "piecewise-linear table with n evenly spaced points"),
+    "pwl": ("host.fitting.piecewise_linear", "fit_pwl", "piecewise-linear with n free knots"),
 }
 
 

@@ -1,6 +1,6 @@
 """Model comparison over orders: the paper's Fig. 3a for every calibration model we have.
 
-For each model and order the fit is made through `host.models.fit_model` (so every model gets
+For each model and order the fit is made through `host.fitting.models.fit_model` (so every model gets
 the same statistics) and scored three ways:
 - `norm2`: the residual 2-norm ||y - f(x)||, the paper's objective O_b / O_p;
 - `rms`: norm2 / sqrt(m), in reference units;
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from host.models import MODELS, fit_model
+from host.fitting.models import MODELS, fit_model
 
 DEFAULT_MODELS = ("bcm", "pcm", "cheb", "spline", "lut", "pwl")
 # Models whose fitter can start from the previous order's fit: their objective then never rises
