@@ -36,6 +36,8 @@ def build_parser():
                         help="no progress lines on stderr (results, warnings and errors are still printed)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for info in sorted(pkgutil.iter_modules(host.commands.__path__), key=lambda m: m.name):
+        if info.name.startswith("_"):  # shared options, not a command
+            continue
         module = importlib.import_module("host.commands." + info.name)
         module.add_parser(sub)
     for command in sub.choices.values():  # `host demo --quiet` as well as `host --quiet demo`

@@ -1,4 +1,4 @@
-"""Host waits measured in the board's own time (host.link.board_client.BoardTime): settle() and
+"""Host waits measured in the board's own time (host.link.board_time.BoardTime): acquire.settle() and
 acquire.collect() give the actuator the same board seconds whatever the host's wall clock does,
 so a virtual board that falls behind on a loaded machine is not cut short. The board here is a
 fake link (the hardware side), whose records carry their t_us and are handed out one per poll
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from firmware import protocol as P
-from host.link import board_client
-from host.link.board_client import BoardTime, settle
 from host.guided import acquire
+from host.guided.acquire import settle
+from host.link.board_time import BoardTime
 
 T = P.FIELDS.index("t_us")
 D2 = P.FIELDS.index("d2_um")
@@ -105,6 +105,6 @@ def test_settle_times_out_and_holds_in_board_seconds(every):
 
 
 def test_settle_gives_up_when_the_board_stops_streaming(monkeypatch):
-    monkeypatch.setattr(board_client, "NO_DATA_S", 0.2)
+    monkeypatch.setattr(acquire, "NO_DATA_S", 0.2)
     ok, value, seconds = settle(FakeLink(every=10 ** 9), "position", 30000, "d2_um", 50, timeout_s=5)
     assert not ok and value is None and seconds == 0.0

@@ -5,7 +5,7 @@ new option is covered by being added)."""
 import pytest
 
 from host import cli
-from host.numbers import ranged
+from host.commands._options import ranged
 
 
 def _numeric_options():
@@ -27,7 +27,7 @@ OPTIONS = _numeric_options()
 def test_every_numeric_option_is_range_checked():
     assert OPTIONS, "no numeric options found"
     plain = [(c, o) for c, o, kind in OPTIONS if kind == "plain"]
-    assert not plain, "use host.numbers.ranged for: %s" % plain
+    assert not plain, "use host.commands._options.ranged for: %s" % plain
 
 
 @pytest.mark.parametrize("command,option", [(c, o) for c, o, _ in OPTIONS])

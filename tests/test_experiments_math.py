@@ -6,8 +6,8 @@ import numpy as np
 
 from firmware.calibration import convert, pot_constants
 from host.experiments.variants import nominal_pot_section
-from host.guided.assembly_calibration import choose_order, fit_df
-from host.guided.force_calibration import hysteresis_n
+from host.fitting.assembly import choose_order, fit_df
+from host.fitting.force import hysteresis_n
 
 
 def test_nominal_pot_is_the_line_through_the_end_readings():

@@ -87,7 +87,8 @@ def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_pat
     of the target, the project's target (the paper: up to 7.0 % and 5.6 %). Without the friction
     term the same data leave the 5 N steps several % off, so this could fail."""
     from host.calibration.fixed_export import export_poly
-    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N, fit_force
+    from host.fitting.force import fit_force
+    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
 
     path = tmp_path / "cal.json"
     path.write_text(json.dumps({"cal": cal_data}))

@@ -13,7 +13,8 @@ import serial
 from firmware import protocol as P
 from firmware.app import VERSION
 from host import cli
-from host.link.board_client import BoardClient, BoardTime
+from host.link.board_client import BoardClient
+from host.link.board_time import BoardTime
 from host.errors import UserError
 from host.link.frames import FrameDecoder
 from host.link.telemetry_log import load, record

@@ -12,6 +12,7 @@ mix. `update_section` lets each calibration step (pots, then Df, then force) add
 the existing file without losing the others.
 """
 
+import dataclasses
 import datetime
 import json
 import math
@@ -175,6 +176,20 @@ def update_section(path, name, section, board=None, pots=None):
     doc["date"] = now_iso()
     write_calibration(path, doc)
     return doc
+
+
+def write_pot(path, pot, fit, adc_bits, pot_id=None, board=None):
+    """Write FitResult `fit` as section `pot` of the calibration file at `path` (created if
+    missing, the other sections kept), with the pot's and the board's identity when given;
+    returns the file's CRC, the one the board will check. A BCM of degree below 3 is written
+    after exact degree elevation, since the firmware evaluates degree 3 (bcm3)."""
+    from host.fitting.rational_bezier import elevate
+
+    if fit.model == "bcm" and fit.order < 3:
+        fit = dataclasses.replace(fit, order=3, coefficients=elevate(fit.coefficients, 3),
+                                  notes=fit.notes + ["degree %d elevated to 3 (same curve)" % fit.order])
+    update_section(path, pot, pot_section(fit, adc_bits, pot_id=pot_id), board=board)
+    return parse_document(Path(path).read_text())[1]
 
 
 def pot_section(fit, adc_bits, pot_id=None, max_error_um=None):

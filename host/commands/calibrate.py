@@ -2,9 +2,9 @@
 
 from pathlib import Path
 
+from host.commands._options import ranged
 from host.errors import UserError
-from host.guided.flow import BRINGUP, STEPS, Options, bringup_done, run_steps
-from host.numbers import ranged
+from host.guided.flow import BRINGUP, Options, STEPS, bringup_done, run_steps
 
 
 def add_parser(subparsers):

@@ -4,9 +4,9 @@ import sys
 import time
 from pathlib import Path
 
-from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
+from host.commands._options import ranged
 from host.errors import UserError
-from host.numbers import ranged
+from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
 
 
 def add_parser(subparsers):

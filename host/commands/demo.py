@@ -42,25 +42,26 @@ def _row(name, r, floors):
 
 def _calibration(out_dir, fit, sweep, say):
     """Write both pot sections from the chosen fit; returns (path, crc, fixed_check) or a reason."""
-    from host.commands.fit import adc_bits_of, write_pot
+    from host.calibration.file import read_calibration, write_pot
+    from host.fitting.sweep import adc_bits_of
 
     path = out_dir / "calibration.json"
+    bits = adc_bits_of(sweep.x)
+    if bits is None:
+        return "raw does not look like ADC codes"
     try:
-        bits = adc_bits_of(sweep)
         if path.exists():
             path.unlink()  # a demo starts from nothing, never from an older run's sections
         for pot in ("pot1", "pot2"):
             crc = write_pot(path, pot, fit, bits)
     except UserError as exc:
         return str(exc)
-    from host.calibration.file import read_calibration
-
     say("wrote %s (crc32 %08x)" % (path, crc))
     return path, crc, read_calibration(path)["pot1"].get("fixed_check")
 
 
 def run(args):
-    from host.commands.fit import fit_sweep
+    from host.fitting.pot_fit import fit_sweep
     from host.fitting.example_sweep import DEFAULT_PATH, write_sweep
     from host.fitting.plots import plot_fit
     from host.fitting.sweep import load_sweep

@@ -3,9 +3,9 @@
 import sys
 from pathlib import Path
 
+from host.commands._options import ranged
 from host.commands.calibrate import add_gauge_arguments, add_method_arguments, make_rig, method_options
 from host.errors import UserError
-from host.numbers import ranged
 
 
 def add_parser(subparsers):

@@ -1,19 +1,14 @@
 """`host fit`: fit one calibration curve to a sweep CSV, report it, optionally plot and save it."""
 
-import dataclasses
-import importlib
 import json
 import math
-import sys
 import time
 
+from host.commands._options import ranged
 from host.errors import UserError
 from host.fitting.models import MODELS
-from host.numbers import ranged
+from host.fitting.pot_fit import RMS_REFUSE, check_model_available, fit_sweep, poor_fit, refusals
 from host.terminal import note
-
-DEFAULT_ORDER = {"bcm": 3, "pcm": 10, "pcm-raw": 10, "cheb": 10, "spline": 8, "pchip": 8, "lut": 16, "pwl": 5}
-MAX_ORDER = 40
 
 
 def add_parser(subparsers):
@@ -56,79 +51,6 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
-def _check_model_available(model):
-    if model == "auto":
-        return
-    module = MODELS[model][0]
-    try:
-        importlib.import_module(module)
-    except ImportError:
-        raise UserError("model %r is not available in this build (module %s is missing)" % (model, module)) from None
-
-
-def fit_sweep(sweep, model="bcm", order=None, bounds="data", budget=12, progress=None):
-    """(FitResult, floors dict, auto reason or None) for a loaded Sweep.
-
-    floors: noise_floor (the scatter, by direction), hysteresis (half the gap between directions)
-    and curve_floor (what one curve of raw alone can reach: both combined), None when unknown.
-    """
-    from host.fitting.model_select import select_model
-    from host.fitting.models import fit_model
-    from host.fitting.noise_floor import estimate_hysteresis, estimate_noise
-
-    _check_model_available(model)
-    try:
-        noise = estimate_noise(sweep.x, sweep.y, sweep.direction)
-        hyst = estimate_hysteresis(sweep.x, sweep.y, sweep.direction)
-        floors = {"noise_floor": noise, "hysteresis": hyst, "curve_floor": float((noise**2 + hyst**2) ** 0.5)}
-    except ValueError:
-        floors = {"noise_floor": None, "hysteresis": None, "curve_floor": None}
-    if model == "auto":
-        sel = select_model(sweep.x, sweep.y, floors["curve_floor"], budget=budget, n_excluded=sweep.n_excluded,
-                           progress=progress)
-        return sel.result, floors, sel.reason
-    order = DEFAULT_ORDER[model] if order is None else order
-    if not 1 <= order <= MAX_ORDER:
-        raise UserError("--order must be between 1 and %d, not %d" % (MAX_ORDER, order))
-    options = {"bounds": bounds} if model == "bcm" else {}
-    if progress:
-        progress("fitting %s order %d to %d samples" % (model, order, sweep.x.size))
-    try:
-        result = fit_model(model, sweep.x, sweep.y, order, n_excluded=sweep.n_excluded, **options)
-    except ValueError as exc:
-        raise UserError("%s order %d cannot be fitted to this sweep: %s" % (model, order, exc)) from None
-    return result, floors, None
-
-
-def adc_bits_of(sweep):
-    from host.fitting.sweep import _full_scale
-
-    fs = _full_scale(sweep.x)
-    if fs is None:
-        raise UserError("raw does not look like ADC codes; give --adc-bits to write a calibration file")
-    return fs.bit_length()
-
-
-def write_pot(path, pot, result, adc_bits, pot_id=None, board=None):
-    """Write `result` as section `pot` of the calibration file (with the pot's and the board's
-    identity when given); returns the file's CRC."""
-    try:
-        from host.calibration.file import pot_section, update_section
-    except ImportError:
-        raise UserError("calibration file support not available (host/calibration/file.py is missing)") from None
-    from host.fitting.rational_bezier import elevate
-
-    if result.model == "bcm" and result.order < 3:  # the firmware's bcm3 runs it after exact elevation
-        coeffs = elevate(result.coefficients, 3)
-        result = dataclasses.replace(result, order=3, coefficients=coeffs,
-                                     notes=result.notes + ["degree %d elevated to 3 (same curve)" % result.order])
-    update_section(path, pot, pot_section(result, adc_bits, pot_id=pot_id), board=board)
-    from firmware.calibration import parse_document  # the CRC the board will check
-
-    with open(path) as fh:
-        return parse_document(fh.read())[1]
-
-
 def report(result, sweep, floors, unit, reason=None):
     """The readable summary (list of lines)."""
     noise = floors["noise_floor"]
@@ -150,31 +72,11 @@ def report(result, sweep, floors, unit, reason=None):
     return lines
 
 
-RMS_WARN = 10  # rms / noise floor: a poor fit (a quadratic on a knee-shaped pot is ~17)
-RMS_REFUSE = 50  # ... and a sweep that is not a calibration (a reference that is not a function of the reading)
-SPAN_REFUSE = 0.02  # rms over 2 % of the reference's span (1.2 mm on a 60 mm pot; BCM-3 leaves ~0.2 %)
-
-
-def refusals(result, noise, span):
-    """Why a fit must not be written as a calibration (empty when it may)."""
-    why = []
-    if not (math.isfinite(result.rms) and math.isfinite(result.max_abs)):
-        why.append("its error is not finite (rms %s): the sweep's numbers are out of range" % result.rms)
-    elif span and result.rms > SPAN_REFUSE * span:
-        why.append("its rms %.4g is %.1f %% of the reference's span %.4g (limit %.0f %%): is the reference a function "
-                   "of the reading?" % (result.rms, 100 * result.rms / span, span, 100 * SPAN_REFUSE))
-    elif noise and result.rms > RMS_REFUSE * noise:
-        why.append("its rms %.4g is %.0f times the sweep's noise floor %.4g (limit %d): is the reference a function "
-                   "of the reading?" % (result.rms, result.rms / noise, noise, RMS_REFUSE))
-    if not result.monotone:
-        why.append("the curve is not monotone, so the firmware could not tell positions apart")
-    return why
-
-
 def run(args):
-    from host.fitting.sweep import load_sweep
+    from host.calibration.file import write_pot
+    from host.fitting.sweep import adc_bits_of, load_sweep
 
-    _check_model_available(args.model)
+    check_model_available(args.model)
     say = (lambda msg: None) if args.json else note
     sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()
@@ -207,9 +109,11 @@ def run(args):
         why = refusals(result, noise, (max(finite) - min(finite)) if finite else None)
         if why and not args.force:
             raise UserError("not writing %s: %s (--force writes it anyway)" % (args.out, "; ".join(why)))
-        if noise and RMS_WARN * noise < result.rms <= RMS_REFUSE * noise:
+        if poor_fit(result, noise):
             say("warning: rms %.4g is %.0f times the noise floor: a poor fit (try --model auto)" % (result.rms, result.rms / noise))
-        bits = args.adc_bits or adc_bits_of(sweep)
+        bits = args.adc_bits or adc_bits_of(sweep.x)
+        if bits is None:
+            raise UserError("raw does not look like ADC codes; give --adc-bits to write a calibration file")
         say("writing %s section of %s (%d-bit ADC)" % (args.pot, args.out, bits))
         try:
             crc = write_pot(args.out, args.pot, result, bits, pot_id=args.pot_id, board=args.board)

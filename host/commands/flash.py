@@ -1,8 +1,9 @@
 """`host flash`: compile and install the firmware, board file and calibration, then verify."""
 
+from host.commands._options import add_load_argument
 from host.errors import UserError
+from host.link.connect import open_port
 from host.link.flashing import flash
-from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
 
 
 def add_parser(subparsers):
@@ -17,8 +18,7 @@ def add_parser(subparsers):
     p.add_argument("--replace-board", action="store_true",
                    help="install --board although the firmware on the board reports another board")
     p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
-    p.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
-                   help="for --port sim: " + LOAD_HELP)
+    add_load_argument(p)
     p.set_defaults(func=run)
 
 
@@ -26,20 +26,11 @@ def run(args):
     def progress(text):
         print(text, flush=True)
 
-    from host.link.ports import resolve
-
-    args.port = resolve(args.port)
-    if args.port == "sim":
-        from host.link.flashing import resolve_board
-        from host.link.virtual_board import VirtualBoard
-
-        board_path, _ = resolve_board(args.board or "sim")
-        with VirtualBoard(board=board_path, factory=False, load=args.load) as vb:
-            status = flash(vb.path, args.board or "sim", args.calibration, progress=progress, ask_board=False)
-    elif args.load is not None:
-        raise UserError("--load only applies to --port sim (on a bench, hook the load by hand)")
-    else:
-        status = flash(args.port, args.board, args.calibration, progress=progress, replace_board=args.replace_board)
+    with open_port(args.port, args.board, load=args.load, factory=False) as where:
+        if where.virtual is not None:  # an empty flash: nothing to ask, the board file is the virtual board's
+            status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False)
+        else:
+            status = flash(where.path, args.board, args.calibration, progress=progress, replace_board=args.replace_board)
     if status.get("version") is None:
         raise UserError("firmware did not report a version")
     print("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],

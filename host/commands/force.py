@@ -1,8 +1,10 @@
 """`host force --target N`: closed-loop force (spring deformation) control, then motor off."""
 
-from host.link.board_client import BoardError, add_port_arguments, open_board, settle
+from host.commands._options import add_port_arguments, ranged
 from host.errors import UserError
-from host.numbers import ranged
+from host.guided.acquire import settle
+from host.link.board_client import BoardError
+from host.link.connect import open_board
 from host.terminal import end_progress, progress_line
 
 

@@ -2,10 +2,10 @@
 
 import sys
 
-from host.link.board_client import add_port_arguments, open_board
+from host.commands._options import add_port_arguments, ranged
 from host.errors import UserError
-from host.numbers import ranged
-from host.link.telemetry_log import metadata_path, CALIBRATED_FIELDS, record
+from host.link.connect import open_board
+from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path, record
 from host.terminal import end_progress, progress_line
 
 

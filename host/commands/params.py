@@ -1,13 +1,10 @@
-"""`host params`: list, read and set the firmware's controller parameters, and keep them on the board.
-
-Names, units, defaults and limits come from the board's own table (the `params` command), so
-the host never carries a second copy that could disagree with the firmware it talks to.
-"""
+"""`host params`: list, read and set the firmware's controller parameters, and keep them on the board."""
 
 import json
 
-from host.link.board_client import add_port_arguments, open_board
-from host.errors import UserError
+from host.commands._options import add_port_arguments
+from host.link.connect import open_board
+from host.link.parameters import parse_items, read_table
 
 
 def add_parser(subparsers):
@@ -24,44 +21,6 @@ def add_parser(subparsers):
     p.add_argument("--json", action="store_true", help="print the table as JSON")
     add_port_arguments(p)
     p.set_defaults(func=run)
-
-
-class Param:
-    """One row of the board's parameter table."""
-
-    def __init__(self, row):
-        self.name, self.value, self.default, self.lo, self.hi, self.unit = row
-
-    def as_dict(self):
-        return {"name": self.name, "value": self.value, "default": self.default, "min": self.lo, "max": self.hi,
-                "unit": self.unit}
-
-
-def read_table(board):
-    """{name: Param} in the board's order."""
-    return {row[0]: Param(row) for row in board.call("params")}
-
-
-def parse_items(items, table):
-    """(names to read, [(name, value)] to set) from NAME and NAME=VALUE words, checked against
-    the table; UserError names the first bad word."""
-    reads, sets = [], []
-    for item in items:
-        name, eq, text = item.partition("=")
-        if name not in table:
-            raise UserError("unknown parameter %r (host params lists them: %s)" % (name, ", ".join(table)))
-        if not eq:
-            reads.append(name)
-            continue
-        try:
-            value = int(text.strip())
-        except ValueError:
-            raise UserError("%s=%s: the value must be a whole number (in %s)" % (name, text, table[name].unit)) from None
-        p = table[name]
-        if not p.lo <= value <= p.hi:
-            raise UserError("%s=%d is outside the firmware's limits %d..%d %s" % (name, value, p.lo, p.hi, p.unit))
-        sets.append((name, value))
-    return reads, sets
 
 
 def describe(table, saved=None):

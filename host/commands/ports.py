@@ -13,12 +13,11 @@ def add_parser(subparsers):
 
 def probe(device):
     """'lsea-kit VERSION on BOARD' or why not."""
-    from host.link.board_client import BoardClient
     from host.errors import UserError
+    from host.link.connect import ask_firmware
 
     try:
-        with BoardClient(device, check=False) as client:
-            st = client.handshake()
+        st = ask_firmware(device)
         return "lsea-kit %s on %s" % (st.get("version"), st.get("board"))
     except (UserError, OSError) as exc:
         return "no lsea-kit firmware (%s)" % (str(exc).split(":")[0],)

@@ -3,7 +3,8 @@
 import signal
 import time
 
-from host.link.virtual_board import DEFAULT_BOARD, LOAD_HELP, LOAD_METAVAR, VirtualBoard, parse_load
+from host.commands._options import add_load_argument
+from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -21,7 +22,7 @@ def add_parser(subparsers):
     p.add_argument("--board", default=str(DEFAULT_BOARD), help="board file (default boards/sim.json)")
     p.add_argument("--calibration", default=None, help="calibration.json to put on the virtual board's flash")
     p.add_argument("--root", default=None, help="directory to use as the board's flash (default: a temp dir, removed at the end)")
-    p.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR, help=LOAD_HELP)
+    add_load_argument(p, help_prefix="")
     p.set_defaults(func=run)
 
 

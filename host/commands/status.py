@@ -2,7 +2,8 @@
 
 import json
 
-from host.link.board_client import add_port_arguments, open_board
+from host.commands._options import add_port_arguments
+from host.link.connect import open_board
 
 # known fields first, in this order, with how to show them; any other field follows as it is
 LABELS = (

@@ -1,7 +1,8 @@
 """`host stop`: motor off, mode idle, and the board ready to move again."""
 
-from host.link.board_client import add_port_arguments, open_board
-from host.commands.reset import clear_faults
+from host.commands._options import add_port_arguments
+from host.commands.reset import cleared
+from host.link.connect import open_board
 
 
 def add_parser(subparsers):
@@ -19,8 +20,7 @@ def run(args):
         board.call("stop")
         faults = board.call("status").get("faults") or []
         if faults == ["host_timeout"]:
-            for line in clear_faults(board):
-                print(line)
+            print(cleared(board))
         elif faults:
             print("latched: %s (host reset clears them once the cause is fixed)" % ", ".join(faults))
         print("stopped")

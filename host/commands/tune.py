@@ -3,11 +3,11 @@
 
 import json
 
-from host.link.board_client import add_port_arguments, open_board
+from host.commands._options import add_port_arguments, ranged
 from host.errors import UserError
-from host.numbers import ranged
-from host.terminal import end_progress, progress_line
 from host.guided.tuning import LOOPS, tune
+from host.link.connect import open_board
+from host.terminal import end_progress, progress_line
 
 DEFAULTS = {  # mode -> (start, step, band) in the shown unit (mm or N)
     "position": (25.0, 5.0, 0.05),

@@ -44,9 +44,10 @@ def paper_method_offline(pots, assembly, force):
     method need a run of their own: --paper-method.)"""
     import numpy as np
 
-    from host.guided.assembly_calibration import binned_peak, fit_df
-    from host.guided.force_calibration import TAUT_N, fit_force
+    from host.fitting.assembly import binned_peak, fit_df
+    from host.fitting.force import fit_force
     from host.fitting.models import fit_model
+    from host.guided.force_calibration import TAUT_N
 
     out = {}
     for pot in ("pot1", "pot2"):
@@ -114,7 +115,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
     results["preload_n"] = force_runs.PRELOAD_N
     results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]
-    from host.commands.fit import DEFAULT_ORDER
+    from host.fitting.pot_fit import DEFAULT_ORDER
 
     order = opts.order if opts.order is not None else DEFAULT_ORDER.get(opts.model)
     results["model"] = "%s%s" % (opts.model, "" if order is None else " order %d" % order)

@@ -109,6 +109,13 @@ def _full_scale(x):
     return None
 
 
+def adc_bits_of(x):
+    """The ADC width (bits) that raw readings `x` imply, or None when they do not look like ADC
+    codes (then the width must be given to write a calibration)."""
+    fs = _full_scale(x)
+    return None if fs is None else fs.bit_length()
+
+
 def sweep_from_arrays(raw, reference, direction=None, source="sweep", full_scale=None):
     """Apply the sweep hygiene to arrays already in memory; returns a Sweep (path None)."""
     x = np.asarray(raw, dtype=float).ravel()

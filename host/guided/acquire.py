@@ -1,9 +1,12 @@
-"""Moving the actuator and logging telemetry for the guided steps and the experiments.
+"""Moving the actuator and logging telemetry: the guided steps, the experiments, tuning and the
+bench commands (`host move`, `host force`).
 
 Sweeps run in open loop at a low duty from one end stop to the other: they need no calibration,
 and the stop is found from the data (the pots stop changing), not from a guessed time. While a
 sweep runs the firmware's soft stroke limits are opened (they would stop a calibrated board 1 mm
-short of the ends) and restored afterwards. Heartbeats keep the firmware's host timeout away.
+short of the ends) and restored afterwards. Closed-loop moves wait until telemetry settles
+(settle). Every wait is in the board's own time (host/link/board_time.py). Heartbeats keep the
+firmware's host timeout away.
 """
 
 import contextlib
@@ -12,7 +15,7 @@ import time
 import numpy as np
 
 from firmware import protocol as P
-from host.link.board_client import NO_DATA_S, BoardTime, settle
+from host.link.board_time import NO_DATA_S, BoardTime
 
 COL = {name: i for i, name in enumerate(P.FIELDS)}
 STREAM_HZ = 200
@@ -112,8 +115,61 @@ def sweep(client, duty, say=None):
     return records, direction
 
 
+def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, window=10, last=None):
+    """Run `mode` towards `target` until telemetry `field` stays within `tolerance` of it for
+    `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away.
+    `last`, a dict, receives the newest record (field name -> int), e.g. to say where it ended.
+    `timeout_s`, `hold_s` and the seconds returned are the board's own time (BoardTime); if no
+    telemetry arrives for NO_DATA_S of wall-clock time it gives up (not settled).
+
+    The value judged is the mean of the last `window` records (0.1 s at the 100 Hz stream): a
+    single reading carries the pots' noise, which near a knee (where one code spans ~3x more
+    travel) is as large as a tight tolerance, so a still actuator would rarely look settled."""
+    index = P.FIELDS.index(field)
+    board.call("mode", mode)
+    board.call("target", int(target))
+    board.start_stream(100)
+    clock = BoardTime()
+    last_data = time.monotonic()
+    inside_since = None
+    value = None
+    recent = []
+    next_progress = 0.0
+    try:
+        while clock.seconds < timeout_s:
+            board.heartbeat_if_due()
+            frames = board.frames(timeout=0.05)
+            for frame in frames:
+                rows = frame.records()
+                clock.add(rows)
+                recent.extend(int(v) for v in rows[:, index])
+                if last is not None and len(rows):
+                    last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
+            if frames:
+                last_data = time.monotonic()
+            elif time.monotonic() - last_data >= NO_DATA_S:
+                break
+            if not recent:
+                continue
+            del recent[:-window]
+            value = sum(recent) / len(recent)
+            now = clock.seconds
+            if len(recent) == window and abs(value - target) <= tolerance:
+                inside_since = now if inside_since is None else inside_since
+                if now - inside_since >= hold_s:
+                    return True, value, now
+            else:
+                inside_since = None
+            if progress and now >= next_progress:
+                next_progress = now + 0.2  # a readable refresh, not one line per frame
+                progress(value, now)
+        return False, value, clock.seconds
+    finally:
+        board.stop_stream()
+
+
 def hold(client, mode, target, field, tolerance, timeout_s=8.0, measure_s=0.3):
-    """Settle `mode` at `target` (through host.link.board_client.settle), then log `measure_s` more
+    """Settle `mode` at `target` (settle), then log `measure_s` more
     seconds still in that mode: (settled, records of the measurement)."""
     reset(client)
     ok, _, _ = settle(client, mode, target, field, tolerance, timeout_s=timeout_s, hold_s=0.2)

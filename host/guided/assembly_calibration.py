@@ -6,12 +6,7 @@ computed on the host by the firmware's own integer converters from the calibrati
 second copy of the arithmetic), Df = D1 - D2 is fitted by a polynomial in D1 and exported as the
 `df` section.
 
-Order: the paper fits a quartic. But the mounting errors are smooth functions of the true
-positions, while the fit's variable is D1, which pot 1's own error bends: a quartic in the true
-position is not one in D1 (on the simulated actuator order 4 leaves 0.36 mm of model error,
-order 8 26 um), and what the pot fits leave enters Df too. So `auto` (the default) starts from
-the paper's 4 and goes higher, up to MAX_ORDER, when 5-fold cross-validation says a higher order
-predicts held-out samples more than 5 % better; an integer fixes the order.
+The order is chosen with the fit (host/fitting/assembly.py).
 """
 
 import numpy as np
@@ -19,11 +14,9 @@ import numpy as np
 from firmware.calibration import CalibrationError, convert, load_calibration
 from host.errors import UserError
 from host.calibration.file import poly_section
+from host.fitting.assembly import binned_peak, fit_df
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
-
-MAX_ORDER = 12
-PAPER_ORDER = 4
 
 
 def positions_um(calibration_path, raw1, raw2):
@@ -35,44 +28,6 @@ def positions_um(calibration_path, raw1, raw2):
     d1 = np.array([convert(cal.pot1[0], int(c), cal.pot1[1]) for c in raw1], dtype=float)
     d2 = np.array([convert(cal.pot2[0], int(c), cal.pot2[1]) for c in raw2], dtype=float)
     return d1, d2
-
-
-def cv_rms(x, y, order, folds=5):
-    """Root mean square hold-out error of a degree-`order` polynomial (interleaved folds)."""
-    idx = np.arange(len(x))
-    err = []
-    for k in range(folds):
-        test = idx % folds == k
-        c = np.polyfit(x[~test], y[~test], order)
-        err.append(y[test] - np.polyval(c, x[test]))
-    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
-
-
-def choose_order(x, y, order, floor=1, top=MAX_ORDER):
-    """(order, {order: cv rms}): the given order, or for 'auto' the lowest order >= `floor` whose
-    cross-validated rms is within 5 % of the best one's."""
-    scores = {n: cv_rms(x, y, n) for n in range(1, top + 1)}
-    if order == "auto":
-        best = min(s for n, s in scores.items() if n >= floor)
-        order = min(n for n, s in scores.items() if n >= floor and s <= 1.05 * best)
-    return int(order), scores
-
-
-def binned_peak(x, resid, width=1.0):
-    """Largest |mean residual| over bins `width` mm wide in D1: the curve's error, without the
-    per-sample noise of two pot readings (bins with fewer than 5 samples are skipped)."""
-    idx = np.floor((x - np.min(x)) / width).astype(int)
-    counts = np.bincount(idx)
-    sums = np.bincount(idx, weights=resid)
-    full = counts >= 5
-    return float(np.max(np.abs(sums[full] / counts[full]))) if full.any() else float("nan")
-
-
-def fit_df(d1_mm, df_mm, order):
-    order, scores = choose_order(d1_mm, df_mm, order, floor=PAPER_ORDER)
-    coeffs = np.polyfit(d1_mm, df_mm, order)
-    resid = df_mm - np.polyval(coeffs, d1_mm)
-    return coeffs, resid, order, scores
 
 
 def calibrate_assembly(session, rig, prompter, opts, calibration_path):

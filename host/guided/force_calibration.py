@@ -9,31 +9,23 @@ fibre slack first. The paper pulls the block toward 0 mm only (gauge on the 60 m
 actuator forces); by default the gauge is then moved to the 0 mm side and the rounds repeated, so
 that F0(d) is measured for both signs of force.
 
-Why a friction term: the block slides on its slider between the spring and the fibre, so the
-gauge reads the spring force minus the block's Coulomb friction h in the direction the block
-slid: F_gauge = F0(d) + h * s, with s = +1 after the force fell (the block slid toward 0 mm) and
--1 after it rose. Fitted without it, loading and unloading disagree by ~2h and the fit carries
-+-h of error (rms 0.28 N on the simulated actuator against 0.04 N with it: docs/paper-experiments.md). F0 and h are fitted
-together by linear least squares (h is one more column); d(F0) is fitted to the spring force
-F_gauge - h * s. The firmware turns h into a play operator on F0(d) (firmware/measurement.py).
-Orders: `auto` (the default) picks the lowest within 5 % of the best 5-fold cross-validated
-error; an integer fixes it (the paper's quadratics: 2).
+The fit (F0, its inverse and the friction term, orders by cross-validation) is
+host/fitting/force.py.
 """
 
 import time
-from dataclasses import dataclass, field
 
 import numpy as np
 
 from host.calibration.file import friction_section, poly_section
 from host.errors import UserError
+from host.fitting.force import fit_force, hysteresis_n
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 from host.guided.prompts import end_progress, progress_line
 
 D_RANGE_MM = (-2.0, 2.0)  # the cavity: |d| never exceeds 2 mm
 F_RANGE_N = (-25.0, 25.0)
-MAX_ORDER = 5
 TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about the spring
 SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
@@ -154,76 +146,6 @@ def force_points(session, rig, prompter, opts, side="high"):
     # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
     s = np.where(loading, 1.0, -1.0) * -SIDES[side]
     return np.array(d), gauge.forces(), s, loading, gauge.tares
-
-
-@dataclass
-class ForceFit:
-    coeffs_f: np.ndarray  # F0(d), N of mm, numpy.polyval order
-    coeffs_d: np.ndarray  # d(F0), mm of N (of the spring force)
-    friction_n: float  # h; 0 when fitted without friction
-    rms_n: float  # of F_gauge - (F0(d) + h s)
-    max_n: float
-    rms_d_mm: float  # of d - d(F_gauge - h s)
-    order_f: int
-    order_d: int
-    scores: dict = field(default_factory=dict)  # order -> cross-validated rms (N)
-
-
-def _design(d, s, order, friction):
-    a = np.vander(d, order + 1)
-    return np.column_stack([a, s]) if friction else a
-
-
-def _solve(d, f, s, order, friction):
-    sol = np.linalg.lstsq(_design(d, s, order, friction), f, rcond=None)[0]
-    return (sol[:-1], float(sol[-1])) if friction else (sol, 0.0)
-
-
-def cv_rms(d, f, s, order, friction, folds=5):
-    """Root mean square hold-out error of the F0 fit (interleaved folds)."""
-    idx = np.arange(len(d))
-    err = []
-    for k in range(folds):
-        test = idx % folds == k
-        c, h = _solve(d[~test], f[~test], s[~test], order, friction)
-        err.append(f[test] - np.polyval(c, d[test]) - h * s[test])
-    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
-
-
-def fit_force(d_mm, force_n, s, order="auto", friction=True):
-    """F_gauge = F0(d) + h s and d(F0 = F_gauge - h s) by least squares: a ForceFit."""
-    d = np.asarray(d_mm, dtype=float)
-    f = np.asarray(force_n, dtype=float)
-    s = np.asarray(s, dtype=float)
-    top = min(MAX_ORDER, len(d) // 3)
-    if top < 1:
-        raise UserError("force: too few points with the fibre taut (%d)" % len(d))
-    scores = {n: cv_rms(d, f, s, n, friction) for n in range(1, top + 1)}
-    if order == "auto":
-        best = min(scores.values())
-        order = min(n for n, v in scores.items() if v <= 1.05 * best)
-    order = int(order)
-    cf, h = _solve(d, f, s, order, friction)
-    if h < 0:  # friction cannot push the way the block slides: a fit artefact, drop the term
-        cf, h = _solve(d, f, s, order, False)
-    spring = f - h * s
-    cd = np.polyfit(spring, d, order)
-    resid = f - np.polyval(cf, d) - h * s
-    rd = d - np.polyval(cd, spring)
-    return ForceFit(cf, cd, h, float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid))),
-                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
-
-
-def hysteresis_n(d, f, loading, order):
-    """Largest gap between loading and unloading fits of F0(d) over their common range (N)."""
-    if np.count_nonzero(loading) <= order or np.count_nonzero(~loading) <= order:
-        return float("nan")
-    cl = np.polyfit(d[loading], f[loading], order)
-    cu = np.polyfit(d[~loading], f[~loading], order)
-    lo = max(d[loading].min(), d[~loading].min())
-    hi = min(d[loading].max(), d[~loading].max())
-    grid = np.linspace(lo, hi, 200)
-    return float(np.max(np.abs(np.polyval(cl, grid) - np.polyval(cu, grid))))
 
 
 def _poly_text(c, var):

@@ -51,7 +51,7 @@ def manual_sweep(session, rig, pot, points, prompter, say):
 
 
 def fit_pot(raw, ref, direction, adc_bits, model, order, budget=None):
-    from host.commands.fit import fit_sweep
+    from host.fitting.pot_fit import fit_sweep
     from host.fitting.sweep import sweep_from_arrays
 
     sweep = sweep_from_arrays(raw, ref, direction, source="pot sweep")

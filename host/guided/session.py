@@ -1,50 +1,46 @@
 """One connection to the board for a whole guided calibration, including re-flashing it.
 
-`--port sim` starts a virtual board here (not through open_board) because the calibration needs
-its filesystem root for the rig and must keep it alive while the client is closed for a flash.
-After each accepted step the calibration file is installed with host.link.flashing.flash (mpremote,
-CRC check, soft reset) and the firmware must answer with the file's CRC.
+The board is opened with host.link.connect.open_port, which keeps a virtual board (`sim`) and
+its filesystem root (where the rig is mounted) alive while the client is closed for a flash.
+After each accepted step the calibration file is installed with host.link.flashing.flash
+(mpremote, CRC check, soft reset) and the firmware must answer with the file's CRC.
 """
 
 from pathlib import Path
 
-from host.link.board_client import BoardClient
 from host.errors import UserError
-from host.link.flashing import REPO, resolve_board
+from host.link.board_client import BoardClient
+from host.link.connect import open_port
+from host.link.flashing import resolve_board
 
 
 class Session:
     def __init__(self, port, board=None, calibration=None, say=print):
-        from host.link.ports import resolve
-
-        self.port = resolve(port)
         self.board_arg = board
         self.calibration = Path(calibration) if calibration else None
         self.say = say
-        self.virtual = None
+        existing = self.calibration if self.calibration and self.calibration.is_file() else None
+        self.where = open_port(port, board, existing)
+        self.port = self.where.port
         self.path = None
         self.client = None
         self.board_path = None
         self.board = None
 
     @property
+    def virtual(self):
+        return self.where.virtual
+
+    @property
     def root(self):
-        return self.virtual.root if self.virtual is not None else None
+        return self.where.root
 
     def __enter__(self):
-        if self.port == "sim":
-            from host.link.virtual_board import VirtualBoard
-
-            self.board_path, self.board = resolve_board(self.board_arg or str(REPO / "boards" / "sim.json"))
-            if not self.board.get("simulated"):
-                raise UserError("--port sim needs a simulated board file, not %s" % self.board_path)
-            existing = self.calibration if self.calibration and self.calibration.is_file() else None
-            self.virtual = VirtualBoard(board=self.board_path, calibration=existing)
-            self.path = self.virtual.start()
-            self.say("virtual board started on %s (filesystem %s)" % (self.path, self.virtual.root))
-        else:
-            self.path = self.port
         try:
+            self.path = self.where.open().path
+            if self.virtual is not None:
+                self.say("virtual board started on %s (filesystem %s)" % (self.path, self.root))
+                self.board_path, self.board = resolve_board(str(self.where.board_path))
             self.client = BoardClient(self.path)
             if self.board is None:
                 self.board_path, self.board = resolve_board(self.board_arg or self.client.status_info["board"])
@@ -61,9 +57,7 @@ class Session:
                 pass
             self.client.close()
             self.client = None
-        if self.virtual is not None:
-            self.virtual.stop()
-            self.virtual = None
+        self.where.close()
 
     def __exit__(self, *exc):
         self.close()

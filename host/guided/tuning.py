@@ -13,9 +13,10 @@ import time
 import numpy as np
 
 from firmware import protocol as P
-from host.link.board_client import NO_DATA_S, BoardTime, settle
 from host.errors import UserError
 from host.fitting.step_response import analyse, best
+from host.guided.acquire import settle
+from host.link.board_time import NO_DATA_S, BoardTime
 
 # mode -> (telemetry field judged, gain parameters, unit of the field, scale to the shown unit)
 LOOPS = {

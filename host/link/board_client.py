@@ -5,7 +5,7 @@ our firmware, running another version, or lacks a needed calibration), checks `s
 `request(cmd, *args)` sends one command line and waits for its reply frame, resending the same
 line on timeout (the firmware answers a repeated line with its cached reply, so a retry never
 runs a command twice). Telemetry frames that arrive meanwhile are queued for `frames()`.
-`open_board(port)` also accepts `sim`: a virtual board started for the life of the client.
+Which port to open (a device, `auto`, `sim`) is host/link/connect.py's business.
 """
 
 import collections
@@ -20,33 +20,6 @@ from host.errors import UserError
 from host.link.frames import FrameDecoder
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
-NO_DATA_S = 3.0  # wall-clock seconds without a telemetry record: the board stopped streaming
-_T_COL = P.FIELDS.index("t_us")
-_T_WRAP = 1 << 30  # the firmware's t_us wraps here
-_T_JUMP_US = 10000000  # a step this long is a restart of the firmware's clock, not time
-
-
-class BoardTime:
-    """The board's own time, in seconds, spanned by the telemetry records fed to it (their t_us).
-
-    Host waits for the actuator (settling, holding, logging N seconds) are measured in it rather
-    than in the host's wall clock: a virtual board on a loaded machine drops the ticks it cannot
-    catch up (boards/sim/machine.py), so per wall-clock second it moves less, and a wait timed by
-    the host's clock would give it less time than on a quiet machine. On a real board the two
-    clocks agree."""
-
-    def __init__(self):
-        self.seconds = 0.0
-        self._last = None
-
-    def add(self, rows):
-        """Count the records `rows` (int array, columns P.FIELDS); returns the seconds so far."""
-        if len(rows):
-            t = rows[:, _T_COL].astype(np.int64)
-            steps = np.diff(t, prepend=t[0] if self._last is None else self._last) % _T_WRAP
-            self.seconds += float(steps[steps < _T_JUMP_US].sum()) / 1e6
-            self._last = int(t[-1])
-        return self.seconds
 
 
 class BoardError(UserError):
@@ -183,6 +156,16 @@ class BoardClient:
         except TimeoutError as exc:
             raise UserError(str(exc))
 
+    def clear_faults(self):
+        """Clear the board's latched faults; returns (the faults cleared, the last fault's text),
+        ([], None) when none were latched."""
+        status = self.call("status")
+        faults = status.get("faults") or []
+        if faults:
+            self.call("reset")
+            self.call("status")  # the reset runs after its reply: this reply comes after it
+        return faults, status.get("last_fault") if faults else None
+
     def heartbeat_if_due(self):
         if time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
             self._last_heartbeat = time.monotonic()
@@ -209,111 +192,3 @@ class BoardClient:
         self._read_frames()
         self.telemetry.clear()
         return result
-
-
-class open_board:
-    """Context manager: a BoardClient on `port`; `port == "sim"` starts a virtual board first,
-    with `load` (a host.link.virtual_board.parse_load dict) hooked on its block."""
-
-    def __init__(self, port, board=None, calibration=None, load=None, **client_options):
-        from host.link.ports import resolve
-
-        self.port = resolve(port)
-        self.board = board
-        self.calibration = calibration
-        self.load = load
-        self.options = client_options
-        self.virtual = None
-        self.client = None
-
-    def __enter__(self):
-        port = self.port
-        if port == "sim":
-            from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
-
-            self.virtual = VirtualBoard(board=self.board or DEFAULT_BOARD, calibration=self.calibration, load=self.load)
-            port = self.virtual.start()
-        elif self.load is not None:
-            raise UserError("--load only applies to --port sim (on a bench, hook the load by hand; "
-                            "for a running host sim, start it with --load)")
-        try:
-            self.client = BoardClient(port, **self.options)
-        except BaseException:
-            self._cleanup()
-            raise
-        return self.client
-
-    def _cleanup(self):
-        if self.client is not None:
-            self.client.close()
-        if self.virtual is not None:
-            self.virtual.stop()
-
-    def __exit__(self, *exc):
-        self._cleanup()
-
-
-def add_port_arguments(parser):
-    """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
-    from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR, parse_load
-
-    parser.add_argument("--port", default="auto",
-                        help="serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this "
-                        "command, or 'auto' (the default: the one board `host ports` finds)")
-    parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
-    parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
-    parser.add_argument("--load", type=parse_load, default=None, metavar=LOAD_METAVAR,
-                        help="for --port sim: " + LOAD_HELP)
-
-
-def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, window=10, last=None):
-    """Run `mode` towards `target` until telemetry `field` stays within `tolerance` of it for
-    `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away.
-    `last`, a dict, receives the newest record (field name -> int), e.g. to say where it ended.
-    `timeout_s`, `hold_s` and the seconds returned are the board's own time (BoardTime); if no
-    telemetry arrives for NO_DATA_S of wall-clock time it gives up (not settled).
-
-    The value judged is the mean of the last `window` records (0.1 s at the 100 Hz stream): a
-    single reading carries the pots' noise, which near a knee (where one code spans ~3x more
-    travel) is as large as a tight tolerance, so a still actuator would rarely look settled."""
-    index = P.FIELDS.index(field)
-    board.call("mode", mode)
-    board.call("target", int(target))
-    board.start_stream(100)
-    clock = BoardTime()
-    last_data = time.monotonic()
-    inside_since = None
-    value = None
-    recent = []
-    next_progress = 0.0
-    try:
-        while clock.seconds < timeout_s:
-            board.heartbeat_if_due()
-            frames = board.frames(timeout=0.05)
-            for frame in frames:
-                rows = frame.records()
-                clock.add(rows)
-                recent.extend(int(v) for v in rows[:, index])
-                if last is not None and len(rows):
-                    last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
-            if frames:
-                last_data = time.monotonic()
-            elif time.monotonic() - last_data >= NO_DATA_S:
-                break
-            if not recent:
-                continue
-            del recent[:-window]
-            value = sum(recent) / len(recent)
-            now = clock.seconds
-            if len(recent) == window and abs(value - target) <= tolerance:
-                inside_since = now if inside_since is None else inside_since
-                if now - inside_since >= hold_s:
-                    return True, value, now
-            else:
-                inside_since = None
-            if progress and now >= next_progress:
-                next_progress = now + 0.2  # a readable refresh, not one line per frame
-                progress(value, now)
-        return False, value, clock.seconds
-    finally:
-        board.stop_stream()

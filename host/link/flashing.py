@@ -209,11 +209,10 @@ def check_files(board_path, calibration=None):
 
 def identify(port):
     """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
-    from host.link.board_client import BoardClient
+    from host.link.connect import ask_firmware
 
     try:
-        with BoardClient(port, check=False) as client:
-            return client.handshake().get("board")
+        return ask_firmware(port).get("board")
     except (UserError, OSError):
         return None
 

@@ -17,7 +17,6 @@ is what mpremote expects), else booting main.py. Output nobody reads is dropped,
 with no host attached does, so the firmware never blocks on a missing client.
 """
 
-import argparse
 import json
 import math
 import os
@@ -129,8 +128,8 @@ def parse_load(text):
             return load
         if kind == "constant" and sep:
             return {"kind": "constant", "force_n": number}
-    raise argparse.ArgumentTypeError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (e.g. gauge@45, "
-                                     "constant:-2.5), not %r" % text)
+    raise ValueError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (e.g. gauge@45, constant:-2.5), "
+                     "not %r" % text)
 
 
 def _set_pty_mode(fd):

@@ -1,0 +1,54 @@
+"""Options shared by the commands (this module is not a command: host.cli skips `_` modules).
+
+Numeric options refuse what no bench means (NaN, infinities, values outside the range the option
+can use) and a bad --load is refused, each as one `error: ...` line from the parser; every board
+command takes the same --port and the options of a virtual board started for it.
+"""
+
+import argparse
+import math
+
+
+def ranged(kind, lo, hi):
+    """An argparse type: `kind` (int or float) within [lo, hi]."""
+
+    def parse(text):
+        try:
+            value = kind(text)
+        except (TypeError, ValueError):
+            raise argparse.ArgumentTypeError("%r is not %s number" % (text, "a whole" if kind is int else "a")) from None
+        if isinstance(value, float) and not math.isfinite(value):
+            raise argparse.ArgumentTypeError("%r is not a finite number" % text)
+        if not lo <= value <= hi:
+            raise argparse.ArgumentTypeError("%s is outside %g..%g" % (text, lo, hi))
+        return value
+
+    parse.__name__ = "%s in %g..%g" % (kind.__name__, lo, hi)
+    parse.range = (kind, lo, hi)
+    return parse
+
+
+def load_option(text):
+    """An argparse type: a --load description (host.link.virtual_board.parse_load)."""
+    from host.link.virtual_board import parse_load
+
+    try:
+        return parse_load(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def add_load_argument(parser, help_prefix="for --port sim: "):
+    from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR
+
+    parser.add_argument("--load", type=load_option, default=None, metavar=LOAD_METAVAR, help=help_prefix + LOAD_HELP)
+
+
+def add_port_arguments(parser):
+    """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
+    parser.add_argument("--port", default="auto",
+                        help="serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this "
+                        "command, or 'auto' (the default: the one board `host ports` finds)")
+    parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
+    parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
+    add_load_argument(parser)

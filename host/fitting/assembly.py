@@ -1,0 +1,52 @@
+"""The assembly error Df = D1 - D2 between the two calibrated pots, fitted as a polynomial in D1
+(the paper's section 3).
+
+Order: the paper fits a quartic. But the mounting errors are smooth functions of the true
+positions, while the fit's variable is D1, which pot 1's own error bends: a quartic in the true
+position is not one in D1, and what the pot fits leave enters Df too. So `auto` starts from the
+paper's 4 and goes higher, up to MAX_ORDER, when cross-validation says a higher order predicts
+held-out samples more than 5 % better (host/fitting/cross_validation.py); an integer fixes the
+order. docs/paper-experiments.md has what each order leaves on the simulated actuator.
+"""
+
+import numpy as np
+
+from host.fitting.cross_validation import cv_rms as _cv_rms
+from host.fitting.cross_validation import lowest_near_best
+
+MAX_ORDER = 12
+PAPER_ORDER = 4
+
+
+def cv_rms(x, y, order):
+    """Root mean square hold-out error of a degree-`order` polynomial y(x)."""
+    return _cv_rms(len(x), lambda train: np.polyfit(x[train], y[train], order),
+                   lambda c, test: y[test] - np.polyval(c, x[test]))
+
+
+def choose_order(x, y, order, floor=1, top=MAX_ORDER):
+    """(order, {order: cv rms}): the given order, or for 'auto' the lowest order >= `floor` whose
+    cross-validated rms is within 5 % of the best one's."""
+    scores = {n: cv_rms(x, y, n) for n in range(1, top + 1)}
+    if order == "auto":
+        order = lowest_near_best(scores, floor)
+    return int(order), scores
+
+
+def binned_peak(x, resid, width=1.0):
+    """Largest |mean residual| over bins `width` mm wide in D1: the curve's error, without the
+    per-sample noise of two pot readings (bins with fewer than 5 samples are skipped)."""
+    idx = np.floor((x - np.min(x)) / width).astype(int)
+    counts = np.bincount(idx)
+    sums = np.bincount(idx, weights=resid)
+    full = counts >= 5
+    return float(np.max(np.abs(sums[full] / counts[full]))) if full.any() else float("nan")
+
+
+def fit_df(d1_mm, df_mm, order):
+    """(coefficients high first, residuals, order, {order: cv rms}) of Df(D1); `order` an integer
+    or "auto" (the paper's quartic unless a higher order cross-validates better)."""
+    order, scores = choose_order(d1_mm, df_mm, order, floor=PAPER_ORDER)
+    coeffs = np.polyfit(d1_mm, df_mm, order)
+    resid = df_mm - np.polyval(coeffs, d1_mm)
+    return coeffs, resid, order, scores
