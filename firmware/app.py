@@ -13,26 +13,16 @@ from array import array
 
 from firmware import hal
 from firmware.board_config import load_board
-from firmware.controller import (
-    FORCE,
-    IDLE,
-    MODE_NAMES,
-    OPEN_LOOP,
-    P_STROKE_MAX,
-    P_STROKE_MIN,
-    PARAMS,
-    POSITION,
-    Controller,
-)
+from firmware.controller import FORCE, IDLE, OPEN_LOOP, P_STROKE_MAX, P_STROKE_MIN, POSITION, Controller
 from firmware.measurement import STROKE_CLAMP_UM, Measurement
 from firmware.motor import Motor
 from firmware.pi_control import DUTY_MAX
+from firmware.protocol import MODES, PARAMS, PROTOCOL_VERSION, VERSION
 from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
 from firmware.sampler import Sampler
 from firmware import saved_params
 from firmware.telemetry import Ring
 
-VERSION = "0.1.0"
 FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
 EXIT_TEXT_MAX = 200
 # What the exit file says while run() runs: if the next boot still finds it, run() never got to
@@ -71,10 +61,8 @@ def _load_calibration(path):
     """(calibration, None) or (None, reason)."""
     if path is None:
         return None, "no calibration file configured"
-    try:
-        from firmware.calibration import CalibrationError, load_calibration
-    except ImportError as exc:
-        return None, "calibration loader missing (%s)" % exc
+    from firmware.calibration import CalibrationError, load_calibration
+
     try:
         return load_calibration(path), None
     except CalibrationError as exc:
@@ -157,7 +145,7 @@ class App:
             "board": self.board["name"],
             "calibration_crc": cal.crc if cal is not None else None,
             "calibration_error": self.calibration_error,
-            "mode": MODE_NAMES[self.ctrl.mode],
+            "mode": MODES[self.ctrl.mode],
             "faults": sf.names(),
             "last_fault": sf.describe(),
             "target": self.ctrl.target,
@@ -175,6 +163,7 @@ class App:
             "interpreter": self.interpreter,
             "mpy": self.mpy,
             "last_exit": self.last_exit,
+            "protocol": PROTOCOL_VERSION,
         }
 
     def heartbeat(self):
@@ -199,14 +188,14 @@ class App:
         if mode in (POSITION, FORCE):
             m = self.ctrl.meas
             if m is None:
-                return "%s mode needs a calibration: %s" % (MODE_NAMES[mode], self.calibration_error)
-            return m.missing_for(MODE_NAMES[mode])
+                return "%s mode needs a calibration: %s" % (MODES[mode], self.calibration_error)
+            return m.missing_for(MODES[mode])
         return None
 
     def set_mode(self, name):
-        if name not in MODE_NAMES:
-            raise ValueError("unknown mode %r (one of %s)" % (name, ", ".join(MODE_NAMES)))
-        mode = MODE_NAMES.index(name)
+        if name not in MODES:
+            raise ValueError("unknown mode %r (one of %s)" % (name, ", ".join(MODES)))
+        mode = MODES.index(name)
         self.safety.heard()
         if mode == IDLE:
             self.stop()
@@ -315,6 +304,15 @@ class App:
         self.ctrl.apply_params()
         self.params_restored = "host silent: %s back to boot values" % ", ".join(changed)
         return True
+
+    def stream(self, state, hz=1000):
+        """The `stream` command: telemetry "on" at `hz` or "off"; returns {"hz": the rate}."""
+        if state == "off":
+            hz = 0
+        elif hz <= 0:
+            raise ValueError("rate must be > 0 Hz")
+        self.set_stream(hz)
+        return {"hz": hz}
 
     def set_stream(self, hz):
         hz = int(hz)

@@ -2,8 +2,8 @@
 
 Called by a hard timer interrupt on a board, so it allocates nothing, uses integers only and
 never raises: an exception inside it stops the motor and is recorded as a fault. Parameters live
-in one preallocated array('i') (PARAMS gives names, defaults and the ranges that keep every
-intermediate within +-2**30); the main loop changes them through App.set_param.
+in one preallocated array('i') (protocol.PARAMS gives names, defaults and the ranges that keep
+every intermediate within +-2**30); the main loop changes them through App.set_param.
 
 The step is viper code over int32 blocks (this one's `Controller.st`, and the sampler's,
 safety's, measurement's and PI's): machine-word arithmetic and single loads and stores, so that
@@ -15,8 +15,9 @@ late, or ran for a whole period) are in status().
 
 from array import array
 
-from firmware.pi_control import DUTY_MAX, GAIN_MAX, PI
+from firmware.pi_control import PI
 from firmware.portable import const, ptr32, ticks_us, zeros
+from firmware.protocol import PARAMS
 from firmware.safety import FAULT_STEP_EXCEPTION
 
 try:
@@ -24,13 +25,13 @@ try:
 except ImportError:  # CPython
     from firmware import portable as micropython
 
+# Modes, numbered as protocol.MODES names them
 IDLE = const(0)
 OPEN_LOOP = const(1)
 POSITION = const(2)
 FORCE = const(3)
-MODE_NAMES = ("idle", "open_loop", "position", "force")
 
-# Parameter indices (into Controller.p) and the table: name, default, min, max.
+# Parameter indices (into Controller.p), in the order of protocol.PARAMS
 P_KP_POS = const(0)
 P_KI_POS = const(1)
 P_KP_FORCE = const(2)
@@ -45,22 +46,6 @@ P_STROKE_MIN = const(10)
 P_STROKE_MAX = const(11)
 P_SLOW_ZONE = const(12)
 P_DEFL_RATE = const(13)
-PARAMS = (  # name, default, min, max, unit (what `host params` shows; the comment says more)
-    ("kp_pos", 768, 0, GAIN_MAX, "duty/256 per um"),  # Q8 duty per um of position error
-    ("ki_pos", 16, 0, GAIN_MAX, "duty/256 per um per step"),  # into the Q8 integral
-    ("kp_force", 2560, 0, GAIN_MAX, "duty/256 per um"),  # per um of deformation error
-    ("ki_force", 8192, 0, GAIN_MAX, "duty/256 per um per step"),
-    ("out_limit", 8000, 0, DUTY_MAX, "duty"),  # |PI output| limit (duty 10000 = 100 %)
-    ("int_limit", 6000, 0, DUTY_MAX, "duty"),  # |integral| limit
-    ("slew", 500, 0, DUTY_MAX, "duty per step"),  # max duty change per step (0 = unlimited)
-    ("host_timeout_ms", 1000, 0, 600000, "ms"),  # host silence that stops the motor (0 = off)
-    ("rail_reads", 4, 1, 1000, "reads"),  # consecutive reads at a rail that make a fault
-    ("rail_margin", 0, 0, 255, "codes"),  # codes from the rail that count as "at the rail"
-    ("stroke_min_um", 500, -65535, 65535, "um"),  # soft stroke limits on D1* and D2
-    ("stroke_max_um", 59500, -65535, 65535, "um"),
-    ("slow_zone_um", 5000, 1, 65535, "um"),  # |duty| toward a limit is capped, falling to 0 over this
-    ("defl_rate_um", 2, 0, 65535, "um per step"),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
-)
 _MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
 
 # Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
@@ -106,7 +91,7 @@ OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one
 HAS_MEAS = const(12)  # 1 while a Measurement is set (an int test is 2 instructions, `if obj` ~1300)
 WORDS = const(13)
 
-# the step's record for the telemetry ring, in the order of telemetry.FIELDS
+# the step's record for the telemetry ring, in the order of protocol.FIELDS
 _R_T = const(0)
 _R_RAW1 = const(1)
 _R_RAW2 = const(2)

@@ -1,19 +1,16 @@
 """The one hardware access layer: picks the `machine` module and builds ADC, PWM, Pin and Timer.
 
-On a board this is MicroPython's `machine`; when the board file says "simulated": true it is
-`boards.sim.machine` configured with the board dict; tests may pass any machine-shaped object.
-Everything above this layer only calls read_u16(), duty_u16(), value(), init() and deinit().
+The `machine` is MicroPython's on a board. The virtual board installs the simulated actuator's
+as `machine` before the firmware boots (host/link/virtual_board.py), so the firmware never knows
+it is simulated; tests may pass any machine-shaped object. Everything above this layer only
+calls read_u16(), duty_u16(), value(), init() and deinit().
 """
 
 
 def get_machine(board, machine=None):
+    """`machine` when given, else the `machine` module."""
     if machine is not None:
         return machine
-    if board.get("simulated"):
-        from boards.sim import machine as sim  # the simulated board
-
-        sim.configure(board, board.get("seed"))
-        return sim
     import machine as hw
 
     return hw

@@ -3,7 +3,8 @@
 `Link(app)` is what `App.run` calls `poll()` on every main-loop iteration. `poll()` reads whatever
 bytes stdin has (never blocking: select.poll with a zero timeout, one byte at a time so a read
 can never wait for more), assembles lines in a preallocated bytearray, parses them with
-firmware.protocol, calls the App method and answers with an ok or error frame. It then drains the
+firmware.protocol (each argument read as its kind in protocol.COMMANDS says), calls the App
+method the table names for the command and answers with an ok or error frame. It then drains the
 App's telemetry ring straight into a preallocated frame (the ring copies each record into a
 memoryview slot of the frame, so draining allocates nothing) and writes it out.
 
@@ -47,7 +48,7 @@ class Link:
         self._byte = bytearray(1)
         self._last_line = b""
         self._last_reply = b""
-        self._reset_pending = False
+        self._after_reply = None
         self.telemetry_seq = 0
         self.lines = 0
         self.errors = 0
@@ -122,8 +123,8 @@ class Link:
             return
         seq = -1
         try:
-            seq, name, args = P.parse_command(line)
-            result = self.dispatch(name, args)
+            seq, name, values = P.parse_command(line)
+            result = self.dispatch(name, values)
             frame = P.encode_frame(P.T_OK, seq, json.dumps(result).encode())
         except P.ProtocolError as exc:
             frame = self._error_frame(exc.args[0], exc.args[1])
@@ -132,9 +133,10 @@ class Link:
         self._last_line = line
         self._last_reply = frame
         self.write(frame)
-        if self._reset_pending:  # now that its reply is out, before the next line is read
-            self._reset_pending = False
-            self.app.reset()
+        if self._after_reply is not None:  # now that its reply is out, before the next line is read
+            method, values = self._after_reply
+            self._after_reply = None
+            method(*values)
 
     def _describe(self, exc):
         text = str(exc)
@@ -152,53 +154,20 @@ class Link:
             self.errors += 1
         self.write(P.encode_frame(ftype, seq, payload))
 
-    def dispatch(self, name, args):
-        app = self.app
-        if name == "status":
-            result = app.status()
-            result["protocol"] = P.PROTOCOL_VERSION
-            return result
-        if name == "stop":
-            app.stop()
+    def dispatch(self, name, values):
+        """Run command `name` with its argument values: the App method protocol.COMMANDS names for
+        it, now or, for a command that runs after its reply (reset), once the reply is out."""
+        row = P.command_row(name)
+        method = getattr(self.app, row[2])
+        if row[3]:
+            self._after_reply = (method, values)
             return None
-        if name == "mode":
-            app.set_mode(args[0])
-            return None
-        if name == "target":
-            app.set_target(P.parse_int(args[0]))
-            return None
-        if name == "stream":
-            if args[0] == "off":
-                hz = 0
-            elif args[0] == "on":
-                hz = P.parse_int(args[1]) if len(args) > 1 else 1000
-                if hz <= 0:
-                    raise ValueError("rate must be > 0 Hz")
-            else:
-                raise ValueError("stream on [hz] | stream off")
-            app.set_stream(hz)
-            return {"hz": hz}
-        if name == "get":
-            return app.get_param(args[0])
-        if name == "set":
-            app.set_param(args[0], P.parse_int(args[1]))
-            return None
-        if name == "params":
-            return app.params()
-        if name == "save":
-            return app.save_params()
-        if name == "heartbeat":
-            app.heartbeat()
-            return None
-        if name == "reset":
-            self._reset_pending = True  # after the reply is out
-            return None
-        raise ValueError("unknown command " + name)
+        return method(*values)
 
     def hello(self):
         """Announce the firmware once at start (lets a host see a reboot happen)."""
         status = self.app.status()
-        info = {"version": status.get("version"), "board": status.get("board"), "protocol": P.PROTOCOL_VERSION}
+        info = {"version": status["version"], "board": status["board"], "protocol": status["protocol"]}
         self.write(P.encode_frame(P.T_HELLO, 0, json.dumps(info).encode()))
 
     # -- telemetry ---------------------------------------------------------------------

@@ -1,4 +1,10 @@
-"""The host-board protocol: the one source of truth of the message set, shared by both sides.
+"""The board's interface, one definition for both sides: the version, the command set with each
+argument's kind, the modes, the parameter table, the telemetry record and the frame layout.
+
+The firmware's link dispatches commands from COMMANDS (firmware/link.py), the App checks
+parameters against PARAMS, the host formats and checks its command lines with the same table
+(host/link/board_client.py), and docs/protocol.md is generated from this module
+(host/link/protocol_doc.py, kept current by a test).
 
 The board's USB serial port also carries the MicroPython REPL, so:
 - host -> board: one ASCII line per command, `!<seq> <cmd> <args...> *<crc32 hex>\\n`, where the
@@ -12,16 +18,15 @@ The board's USB serial port also carries the MicroPython REPL, so:
     payload (length bytes, padded with zeros to a whole word)
     CRC32 of everything before it (binascii.crc32)
   The host decoder skips anything that is not a valid frame (REPL text, banners, noise).
-
-Imported by firmware/link.py (board side), host/link/frames.py, host/link/board_client.py and
-host/link/protocol_doc.py (which renders docs/protocol.md from COMMANDS, FRAME_TYPES and FIELDS).
 """
 
 import binascii
 import struct
 
-from firmware.telemetry import FIELDS, RECORD_WORDS
+from firmware.pi_control import DUTY_MAX, GAIN_MAX
+from firmware.telemetry import RECORD_WORDS
 
+VERSION = "0.1.0"  # the firmware's, and the host package's (pyproject.toml reads it from here)
 PROTOCOL_VERSION = 1
 SYNC = b"\xa5\x5a"
 SYNC_WORD = 0x5AA5  # the two sync bytes read as the low half of little-endian word 0
@@ -33,49 +38,80 @@ MAX_LINE = 200  # longest command line the board accepts (its preallocated line 
 TOKEN_MIN = 0x21  # the bytes a command word may hold: printable ASCII, no space, so no Ctrl-C/D
 TOKEN_MAX = 0x7E
 TELEMETRY_BATCH = 16  # most records in one telemetry frame
+INT_LIMIT = 1 << 30  # integer arguments stay within +-2**30, the small-int range of 32-bit boards
 
-# Frame types: (number, name, payload description)
+# Modes, by number (the `mode` telemetry field; firmware/controller.py's IDLE .. FORCE)
+MODES = ("idle", "open_loop", "position", "force")
+
+# The controller's parameters: name, default, min, max, unit. The limits keep every intermediate
+# of the step within +-2**30 (firmware/controller.py, pi_control.py); docs/firmware.md says what
+# each one does. Their order is the index the step reads them by (controller.P_KP_POS ...).
+PARAMS = (
+    ("kp_pos", 768, 0, GAIN_MAX, "duty/256 per um"),  # Q8 duty per um of position error
+    ("ki_pos", 16, 0, GAIN_MAX, "duty/256 per um per step"),  # into the Q8 integral
+    ("kp_force", 2560, 0, GAIN_MAX, "duty/256 per um"),  # per um of deformation error
+    ("ki_force", 8192, 0, GAIN_MAX, "duty/256 per um per step"),
+    ("out_limit", 8000, 0, DUTY_MAX, "duty"),  # |PI output| limit (duty 10000 = 100 %)
+    ("int_limit", 6000, 0, DUTY_MAX, "duty"),  # |integral| limit
+    ("slew", 500, 0, DUTY_MAX, "duty per step"),  # max duty change per step (0 = unlimited)
+    ("host_timeout_ms", 1000, 0, 600000, "ms"),  # host silence that stops the motor (0 = off)
+    ("rail_reads", 4, 1, 1000, "reads"),  # consecutive reads at a rail that make a fault
+    ("rail_margin", 0, 0, 255, "codes"),  # codes from the rail that count as "at the rail"
+    ("stroke_min_um", 500, -65535, 65535, "um"),  # soft stroke limits on D1* and D2
+    ("stroke_max_um", 59500, -65535, 65535, "um"),
+    ("slow_zone_um", 5000, 1, 65535, "um"),  # |duty| toward a limit is capped, falling to 0 over this
+    ("defl_rate_um", 2, 0, 65535, "um per step"),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
+)
+PARAM_NAMES = tuple(row[0] for row in PARAMS)
+
+# The telemetry record: RECORD_WORDS int32 words, in this order (firmware/telemetry.py's ring)
+FIELDS = (
+    "t_us",  # loop time since start, us (step count x period, wraps at 2**30)
+    "raw1",  # pot 1 code, board-native bits, oversampled mean
+    "raw2",  # pot 2 code
+    "raw_ref",  # reference channel code (0 when the board has none)
+    "d1_um",  # nut position D1* (after the Df correction), um
+    "d2_um",  # output block position D2, um
+    "defl_um",  # spring deformation d = D1* - D2, um
+    "force_mN",  # F0(d), mN
+    "target",  # the mode's target: duty, um or mN
+    "duty",  # signed duty sent to the bridge, [-DUTY_MAX, DUTY_MAX]
+    "mode",  # mode number (MODES)
+    "faults",  # fault bit mask (safety.FAULT_NAMES)
+)
+
+# Frame types: (number, name); what each payload holds is in docs/protocol.md
 T_OK = 1
 T_ERROR = 2
 T_TELEMETRY = 3
 T_HELLO = 4
-FRAME_TYPES = (
-    (T_OK, "ok", "UTF-8 JSON value: the command's result (null when it has none)"),
-    (T_ERROR, "error", "UTF-8 text: why the command was refused or failed"),
-    (
-        T_TELEMETRY,
-        "telemetry",
-        "int32 `dropped` (records the board's ring overwrote before they were sent, cumulative), "
-        "then `count` records of %d int32 each, fields in the order of FIELDS" % RECORD_WORDS,
-    ),
-    (T_HELLO, "hello", "UTF-8 JSON object sent once when the firmware starts: version, board, protocol"),
-)
-TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
+FRAME_TYPES = ((T_OK, "ok"), (T_ERROR, "error"), (T_TELEMETRY, "telemetry"), (T_HELLO, "hello"))
+TYPE_NAMES = {number: name for number, name in FRAME_TYPES}
 
-# Commands: (name, argument names, result, what it does). Arguments are printable ASCII tokens
-# (TOKEN_MIN..TOKEN_MAX; format_command refuses anything else); integers are decimal. `int`
-# arguments must fit +-2**30 (the board's small-int range).
+# The kinds of a command's arguments: INT, a decimal integer within +-INT_LIMIT, or a tuple of the
+# words accepted. Each argument is (name, kind, default); REQUIRED as the default means it must be
+# given, any other default is used when it is not.
+INT = "int"
+REQUIRED = None
+# Commands: name, arguments, the App method that runs it, and whether it runs after its reply is
+# sent (reset: the reply must leave before the state it reports is gone). What each one does and
+# returns is written for people in host/link/protocol_doc.py (kept off the board, where every
+# string costs heap), which fails when a command here has no text there.
 COMMANDS = (
-    ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
-     "step_us_max, overruns, period_us, stroke_um, params_changed, params_saved, params_file_error, params_restored, "
-     "timer, interpreter, mpy, last_exit, protocol",
-     "identify the firmware and report its state (the handshake)"),
-    ("stop", (), "null", "motor off, mode idle"),
-    ("mode", ("name",), "null", "switch mode: idle, open_loop, position or force"),
-    ("target", ("value:int",), "null",
-     "set the target of the current mode: um (position), mN (force), signed duty (open_loop)"),
-    ("stream", ("on/off", "[hz:int]"), "object: hz", "start telemetry at hz (default 1000) or stop it"),
-    ("get", ("param",), "int", "read a controller parameter"),
-    ("set", ("param", "value:int"), "null", "write a controller parameter"),
-    ("params", (), "list of [name, value, default, min, max, unit]",
-     "the parameters `get`/`set` accept, with the values in force and their table"),
-    ("save", (), "object: file, saved (names that differ from the defaults)",
-     "keep the parameters in force on the board's filesystem; loaded at the next boot (idle only)"),
-    ("heartbeat", (), "null", "keep-alive: the firmware stops the motor when heartbeats stop"),
-    ("reset", (), "null", "clear latched faults, motor off, mode idle (after the reply is sent)"),
+    ("status", (), "status", False),
+    ("stop", (), "stop", False),
+    ("mode", (("name", MODES, REQUIRED),), "set_mode", False),
+    ("target", (("value", INT, REQUIRED),), "set_target", False),
+    ("stream", (("state", ("on", "off"), REQUIRED), ("hz", INT, 1000)), "stream", False),
+    ("get", (("param", PARAM_NAMES, REQUIRED),), "get_param", False),
+    ("set", (("param", PARAM_NAMES, REQUIRED), ("value", INT, REQUIRED)), "set_param", False),
+    ("params", (), "params", False),
+    ("save", (), "save_params", False),
+    ("heartbeat", (), "heartbeat", False),
+    ("reset", (), "reset", True),
 )
 COMMAND_NAMES = tuple(c[0] for c in COMMANDS)
-_ARITY = {c[0]: (sum(1 for a in c[1] if not a.startswith("[")), len(c[1])) for c in COMMANDS}
+_BY_NAME = {c[0]: c for c in COMMANDS}
 
 
 class ProtocolError(Exception):
@@ -123,7 +159,8 @@ def format_command(seq, name, *args):
 
 
 def parse_command(line):
-    """Parse one line (bytes, without the newline) -> (seq, name, args as list of str).
+    """Parse one line (bytes, without the newline) -> (seq, name, argument values), the values
+    read by their kinds in COMMANDS (int for INT, the word for a choice), defaults filled in.
 
     Raises ProtocolError(seq, message) for anything else; seq is -1 when it cannot be read.
     """
@@ -153,24 +190,52 @@ def parse_command(line):
         raise ProtocolError(seq, "checksum mismatch")
     if seq < 0 or len(parts) < 2:
         raise ProtocolError(seq, "expected !<seq> <cmd> <args> *<crc32>")
-    name = parts[1]
-    if name not in _ARITY:
-        raise ProtocolError(seq, "unknown command " + name[:24])
-    args = parts[2:]
-    least, most = _ARITY[name]
-    if not least <= len(args) <= most:
-        raise ProtocolError(seq, "%s takes %d..%d arguments" % (name, least, most))
-    return seq, name, args
+    try:
+        return seq, parts[1], arguments(parts[1], parts[2:])
+    except ValueError as exc:
+        raise ProtocolError(seq, str(exc))
+
+
+def command_row(name):
+    """The COMMANDS row of `name`; ValueError for a command the board does not have."""
+    row = _BY_NAME.get(name)
+    if row is None:
+        raise ValueError("unknown command " + str(name)[:24])
+    return row
+
+
+def arguments(name, words):
+    """The values of command `name`'s arguments from their words (str on the board; the host's
+    values on the host), each read and checked as its kind says, defaults filled in; ValueError
+    says what is wrong."""
+    spec = command_row(name)[1]
+    if len(words) > len(spec):
+        raise ValueError("%s takes at most %d arguments" % (name, len(spec)))
+    values = []
+    for i, (arg, kind, default) in enumerate(spec):
+        if i >= len(words):
+            if default is REQUIRED:
+                raise ValueError("%s needs %s" % (name, " ".join(a[0] for a in spec if a[2] is REQUIRED)))
+            values.append(default)
+        elif kind == INT:
+            values.append(parse_int(words[i]))
+        elif words[i] in kind:
+            values.append(words[i])
+        else:
+            raise ValueError("%s: %s must be one of %s, not %s" % (name, arg, ", ".join(kind), str(words[i])[:24]))
+    return values
 
 
 def parse_int(token):
     """A command's integer argument, kept inside the board's small-int range."""
+    if isinstance(token, bool):
+        raise ValueError("not an integer: %s" % (token,))
     try:
         value = int(token)
     except ValueError:
-        raise ValueError("not an integer: " + token[:24])
-    if not -(2**30) <= value <= 2**30:
-        raise ValueError("out of range: " + token[:24])
+        raise ValueError("not an integer: " + str(token)[:24])
+    if isinstance(token, float) or not -INT_LIMIT <= value <= INT_LIMIT:
+        raise ValueError("out of range: " + str(token)[:24])
     return value
 
 

@@ -1,7 +1,6 @@
 """Telemetry: the fixed-size binary record layout and the preallocated ring the control step writes.
 
-This module is the one source of truth for the record layout: every field is an int32, in the
-order of FIELDS. The control step (a hard interrupt on a board) is the only writer; the main
+A record is RECORD_WORDS int32 words, the fields of protocol.FIELDS in that order. The control step (a hard interrupt on a board) is the only writer; the main
 loop (the link) is the only reader. Writer and reader each own one counter, so no lock is needed
 and nothing is allocated on either side.
 
@@ -18,20 +17,7 @@ try:
 except ImportError:  # CPython
     from firmware import portable as micropython
 
-FIELDS = (
-    "t_us",  # loop time since start, us (step count x period, wraps at 2**30)
-    "raw1",  # pot 1 code, board-native bits, oversampled mean
-    "raw2",  # pot 2 code
-    "raw_ref",  # reference channel code (0 when the board has none)
-    "d1_um",  # nut position D1* (after the Df correction), um
-    "d2_um",  # output block position D2, um
-    "defl_um",  # spring deformation d = D1* - D2, um
-    "force_mN",  # F0(d), mN
-    "target",  # the mode's target: duty, um or mN
-    "duty",  # signed duty sent to the bridge, [-DUTY_MAX, DUTY_MAX]
-    "mode",  # mode number (controller.MODE_NAMES)
-    "faults",  # fault bit mask (safety.FAULT_NAMES)
-)
+# the record's size: len(protocol.FIELDS) words (a constant, for the viper code)
 RECORD_WORDS = const(12)
 RECORD_BYTES = const(48)
 _MASK = const(0x3FFFFFFF)  # counters wrap inside the 31-bit small-int range of 32-bit boards

@@ -1,3 +1,3 @@
 """lsea-kit host tools: calibration math, firmware export, the board link and bench commands."""
 
-__version__ = "0.1.0"
+from firmware.protocol import VERSION as __version__  # noqa: F401  (written once, with the interface)

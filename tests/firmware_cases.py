@@ -551,7 +551,7 @@ def case_range_checks(path):
     """Targets and parameters outside their ranges are refused with ValueError and change
     nothing: position +-65535 um, open-loop duty +-10000, force +-200 N, every parameter's own
     min..max from the table."""
-    from firmware.controller import PARAMS
+    from firmware.protocol import PARAMS
 
     data = load(path)
     app, _ = make_app(data)

@@ -97,7 +97,7 @@ def instrumented():
 
 
 def _extreme_params(app):
-    from firmware.controller import PARAMS
+    from firmware.protocol import PARAMS
 
     for name, _, lo, hi, _ in PARAMS:
         if name.startswith(("kp_", "ki_", "out_limit", "int_limit", "slew")):
@@ -121,7 +121,7 @@ def test_step_intermediates_stay_within_31_bits(instrumented, tmp_path):
     shipped = PEAK["value"]
     # every mode with every gain and limit at its maximum, driven into both stroke ends,
     # force targets at both extremes of the accepted range
-    app = App("boards/sim.json", None)
+    app = App("boards/sim.json", None, machine=sim.for_board("boards/sim.json"))
     app.set_calibration(firmware_cases.Cal(cal))
     _extreme_params(app)
     app.set_param("host_timeout_ms", 600000)

@@ -3,6 +3,7 @@ CPython and MicroPython like tests/firmware_cases.py (named test_firmware_* only
 firmware tests' namespace; it holds no pytest tests and imports nothing CPython-only).
 """
 
+from boards.sim.machine import for_board
 from firmware_cases import Cal, load
 
 
@@ -18,7 +19,7 @@ def case_position_sim(path, targets, settle_ticks=1500, hold_ticks=300):
     import boards.sim.machine as sim
 
     data = load(path)
-    app = App("boards/sim.json", None)  # the board file says simulated: hal configures sim
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
     app.set_calibration(Cal(data["cal"]))
     app.start()
     world = sim.world()
@@ -58,13 +59,13 @@ def case_boot_calibration_file(good_path, bad_path):
     refused."""
     from firmware.app import App
 
-    good = App("boards/sim.json", good_path)
+    good = App("boards/sim.json", good_path, machine=for_board("boards/sim.json"))
     st = good.status()
     assert st["calibration_error"] is None and isinstance(st["calibration_crc"], int), st
     good.step(None)
     good.set_mode("position")
     good.set_mode("force")
-    bad = App("boards/sim.json", bad_path)
+    bad = App("boards/sim.json", bad_path, machine=for_board("boards/sim.json"))
     st = bad.status()
     assert st["calibration_crc"] is None and "CRC" in st["calibration_error"].upper(), st
     try:
@@ -76,7 +77,7 @@ def case_boot_calibration_file(good_path, bad_path):
     bad.set_target(1000)
     bad.step(None)
     assert bad.ctrl.duty > 0 and bad.sampler.raw2 > 0
-    missing = App("boards/sim.json", bad_path + ".absent")
+    missing = App("boards/sim.json", bad_path + ".absent", machine=for_board("boards/sim.json"))
     assert "no calibration file" in missing.status()["calibration_error"], missing.status()
     return {"crc": good.status()["calibration_crc"], "error": st["calibration_error"]}
 
@@ -92,7 +93,7 @@ def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
     import boards.sim.machine as sim
 
     data = load(path)
-    app = App("boards/sim.json", None)
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
     app.set_calibration(Cal(data["cal"]))
     app.start()
     world = sim.world()
@@ -151,7 +152,7 @@ def _hooked_on_side(path, side, anchor, gap_um):
 
     import boards.sim.machine as sim
 
-    app = App("boards/sim.json", None)
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
     app.set_calibration(Cal(load(path)["cal"]))
     app.start()
     world = sim.world()
@@ -217,7 +218,7 @@ def case_wiper_lift_sim(path, pot):
     import boards.sim.machine as sim
 
     data = load(path)
-    app = App("boards/sim.json", None)
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
     app.set_calibration(Cal(data["cal"]))
     app.start()
     sim.run_ticks(10)
@@ -245,7 +246,7 @@ def case_stroke_limits_sim(path, duty=10000, ticks=1500):
     import boards.sim.machine as sim
 
     data = load(path)
-    app = App("boards/sim.json", None)
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
     app.set_calibration(Cal(data["cal"]))
     app.start()
     world = sim.world()
@@ -331,7 +332,7 @@ def case_run_realtime_sim():
 
     import boards.sim.machine as sim
 
-    app = App("boards/sim.json", None)
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
     link = QuittingLink(app, 300)
     app.run(link)
     st = app.status()

@@ -290,6 +290,25 @@ def test_flash_refuses_bad_files_and_another_board_before_touching_the_board(cal
             assert client.status_info["calibration_crc"] == crc
 
 
+def test_flash_refuses_a_board_file_the_firmware_would_refuse_at_boot(calibrations, tmp_path, capsys):
+    """The board file goes through the firmware's own check (board_config.load_board, what the App
+    runs at boot) before the board is touched: one error line with the firmware's reason."""
+    from firmware.board_config import BoardError, load_board
+
+    board = json.loads((Path(__file__).resolve().parent.parent / "boards" / "sim.json").read_text())
+    board["loop_hz"] = 1500  # not a whole number of microseconds per step
+    bad = tmp_path / "sim.json"
+    bad.write_text(json.dumps(board))
+    with pytest.raises(BoardError) as at_boot:
+        load_board(str(bad))
+    with VirtualBoard(calibration=str(calibrations["a"][0])) as vb:
+        installed = (vb.root / "board.json").read_bytes()
+        code = cli.main(["flash", "--port", vb.path, "--board", str(bad)])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and str(at_boot.value) in err[0], err
+        assert (vb.root / "board.json").read_bytes() == installed and not (vb.root / "_new").exists()
+
+
 def test_flash_reads_back_every_file_it_installed(calibrations, monkeypatch, tmp_path):
     """The CRCs the board reports after the swap are compared with the files: a board that
     holds something else (here: mpremote's read-back reports other CRCs) fails the flash."""

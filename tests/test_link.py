@@ -9,6 +9,7 @@ import random
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from boards.sim.machine import for_board
 from firmware import protocol as P
 from firmware.app import App
 from firmware.link import Link
@@ -71,7 +72,7 @@ def check_one_reply_per_line(lines, frames):
 
 def make_link():
     out = bytearray()
-    app = App(BOARD, None)
+    app = App(BOARD, None, machine=for_board(BOARD))
     return app, Link(app, stdin=False, write=out.extend), out
 
 
@@ -102,10 +103,10 @@ def test_micropython_parser_answers_every_line_once(tmp_path):
     src = tmp_path / "lines.json"
     src.write_text(json.dumps([binascii.hexlify(x).decode() for x in lines]))
     proc = run_micropython(
-        "import json, binascii\nfrom firmware.app import App\nfrom firmware.link import Link\n"
-        "out = bytearray()\napp = App(%r, None)\nlink = Link(app, stdin=False, write=out.extend)\n"
+        "import json, binascii\nfrom boards.sim.machine import for_board\nfrom firmware.app import App\nfrom firmware.link import Link\n"
+        "out = bytearray()\napp = App(%r, None, machine=for_board(%r))\nlink = Link(app, stdin=False, write=out.extend)\n"
         "for h in json.load(open(%r)):\n    link.handle_line(binascii.unhexlify(h))\n"
-        "print(binascii.hexlify(out).decode())\n" % (BOARD, str(src))
+        "print(binascii.hexlify(out).decode())\n" % (BOARD, BOARD, str(src))
     )
     frames = replies(binascii.unhexlify(proc.stdout.strip().splitlines()[-1]))
     check_one_reply_per_line(lines, frames)
@@ -138,9 +139,10 @@ def test_commands_reach_the_app():
 
 TELEMETRY_UNDER_HEAP_LOCK = """
 import micropython, binascii
+from boards.sim.machine import for_board
 from firmware.app import App
 from firmware.link import Link
-app = App(%r, None)
+app = App(%r, None, machine=for_board(%r))
 app.set_stream(1000)
 app.start()
 app.machine.run_ticks(40)
@@ -149,6 +151,7 @@ def sink(b):
     views[0] = b
 link = Link(app, stdin=False, write=sink)
 out = []
+n = 0  # made before the lock: a new global would grow this script's globals dict under it
 while True:
     micropython.heap_lock()
     try:
@@ -164,7 +167,7 @@ print(' '.join(out))
 
 
 def test_micropython_telemetry_drain_allocates_nothing():
-    proc = run_micropython(TELEMETRY_UNDER_HEAP_LOCK % BOARD)
+    proc = run_micropython(TELEMETRY_UNDER_HEAP_LOCK % (BOARD, BOARD))
     data = b"".join(binascii.unhexlify(h) for h in proc.stdout.split())
     dec = FrameDecoder()
     frames = dec.feed(data)

@@ -10,7 +10,7 @@ import time
 import pytest
 
 from firmware import saved_params
-from firmware.controller import PARAMS
+from firmware.protocol import PARAMS
 from host import cli
 from host.link.board_client import BoardClient
 from host.link.virtual_board import VirtualBoard
@@ -93,7 +93,7 @@ def test_the_unix_port_reads_what_cpython_wrote_and_the_other_way(tmp_path):
     values[2] = 3000
     saved_params.save(a, PARAMS, values)
     out = run_micropython(
-        "from firmware import saved_params\nfrom firmware.controller import PARAMS\n"
+        "from firmware import saved_params\nfrom firmware.protocol import PARAMS\n"
         "got, why = saved_params.load(%r, PARAMS)\nprint(why, got[2])\n"
         "v = [r[1] for r in PARAMS]\nv[3] = 4000\nsaved_params.save(%r, PARAMS, v)\n" % (a, b)).stdout.split()
     assert out == ["None", "3000"]

@@ -60,7 +60,41 @@ def test_command_lines_round_trip_and_never_contain_ctrl_c_or_ctrl_d():
     for seq, name, args in [(1, "status", ()), (65534, "target", (-123456,)), (9, "set", ("kp_pos", 300)), (3, "stream", ("on", 1000))]:
         line = P.format_command(seq, name, *args)
         assert 3 not in line and 4 not in line and line.endswith(b"\n")
-        assert P.parse_command(line.rstrip(b"\n")) == (seq, name, [str(a) for a in args])
+        assert P.parse_command(line.rstrip(b"\n")) == (seq, name, list(args))
+
+
+def test_arguments_are_read_by_their_kind_in_the_table():
+    assert P.arguments("stream", ["on"]) == ["on", 1000]  # a default fills in
+    assert P.arguments("stream", ["off"]) == ["off", 1000]
+    assert P.arguments("target", ["-42"]) == [-42] and P.arguments("set", ["slew", "7"]) == ["slew", 7]
+    for name, words, why in [
+        ("mode", ["sideways"], "mode: name must be one of idle, open_loop, position, force, not sideways"),
+        ("get", ["kpos"], "get: param must be one of kp_pos, "),
+        ("set", ["slew"], "set needs param value"),
+        ("target", ["12.5"], "not an integer: 12.5"),
+        ("target", [str(2**30 + 1)], "out of range: 1073741825"),
+        ("stop", ["now"], "stop takes at most 0 arguments"),
+        ("fly", [], "unknown command fly"),
+    ]:
+        with pytest.raises(ValueError, match="^" + re.escape(why)):
+            P.arguments(name, words)
+        if name != "fly":  # the board answers a line with the same reason
+            line = P.format_command(3, name, *words).rstrip(b"\n")
+            with pytest.raises(P.ProtocolError) as info:
+                P.parse_command(line)
+            assert info.value.args[0] == 3 and info.value.args[1].startswith(why)
+
+
+def test_every_command_runs_an_app_method_and_every_mode_is_the_controllers():
+    from firmware import controller
+    from firmware.app import App
+
+    assert all(callable(getattr(App, row[2], None)) for row in P.COMMANDS)
+    assert [c[0] for c in P.COMMANDS if c[3]] == ["reset"]  # runs after its reply
+    assert [P.MODES.index(n) for n in ("idle", "open_loop", "position", "force")] == [
+        controller.IDLE, controller.OPEN_LOOP, controller.POSITION, controller.FORCE]
+    # the step reads parameter i as controller.P_<NAME>: the table's order is those indices
+    assert [getattr(controller, "P_" + n.upper().removesuffix("_UM")) for n in P.PARAM_NAMES] == list(range(len(P.PARAMS)))
 
 
 def test_format_command_refuses_words_that_would_break_the_line_or_reach_the_repl():
@@ -106,13 +140,16 @@ def test_every_formatted_line_is_printable_ascii_or_refused(seq, name, args):
     body = line[:-1]
     assert all(0x20 <= b <= 0x7E for b in body)  # printable ASCII: no Ctrl-C, no Ctrl-D, no CR/LF
     assert 3 not in line and 4 not in line and len(body) <= P.MAX_LINE
-    # ... and the board reads back exactly the words that were sent (arity aside)
+    # ... and the board reads back exactly the words that were sent, as the table reads them
+    words = [str(a) for a in args]
     try:
-        got = P.parse_command(body)
-    except P.ProtocolError as exc:
-        assert exc.args[1].startswith(name + " takes ")
+        values = P.arguments(name, words)
+    except ValueError as exc:
+        with pytest.raises(P.ProtocolError) as info:
+            P.parse_command(body)
+        assert info.value.args == (seq, str(exc))
     else:
-        assert got == (seq, name, [str(a) for a in args])
+        assert P.parse_command(body) == (seq, name, values)
 
 
 def test_parse_rejects_a_single_flipped_character():

@@ -12,5 +12,5 @@ def test_protocol_doc_lists_every_command_and_frame_type():
     text = render()
     for name in P.COMMAND_NAMES:
         assert "| `%s` |" % name in text
-    for _, name, _ in P.FRAME_TYPES:
+    for _, name in P.FRAME_TYPES:
         assert "| `%s` |" % name in text

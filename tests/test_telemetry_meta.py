@@ -3,9 +3,8 @@ calibration CRC, loop period, rate, date, each column's unit, the mode and fault
 
 import json
 
-from firmware.controller import MODE_NAMES
+from firmware.protocol import FIELDS, MODES
 from firmware.safety import FAULT_NAMES
-from firmware.telemetry import FIELDS
 from host import cli
 from host.link.telemetry_log import UNITS, load
 
@@ -27,7 +26,7 @@ def test_host_log_writes_the_metadata_beside_the_csv(tmp_path, capsys):
     assert meta["board"] == "sim" and meta["stream_hz"] == 200 and meta["loop_period_us"] == 1000
     assert meta["calibration_crc"] == "%08x" % json.loads(cal.read_text())["crc32"]
     assert list(meta["columns"]) == list(FIELDS) and meta["date"].endswith("+00:00")
-    assert meta["modes"] == {str(i): n for i, n in enumerate(MODE_NAMES)}
+    assert meta["modes"] == {str(i): n for i, n in enumerate(MODES)}
     assert meta["faults"] == {str(b): n for b, n in FAULT_NAMES}
     data = load(out)  # the CSV itself stays a plain table
     assert len(data["t_us"]) >= 50 and set(data["mode"]) <= {int(k) for k in meta["modes"]}

@@ -11,7 +11,7 @@ import pytest
 import serial
 
 from firmware import protocol as P
-from firmware.app import VERSION
+from firmware.protocol import VERSION
 from host import cli
 from host.link.board_client import BoardClient
 from host.link.board_time import BoardTime
@@ -42,7 +42,7 @@ def test_status_handshake_over_the_pty(vboard):
         status = board.status_info
         assert status["version"] == VERSION and status["board"] == "sim" and status["protocol"] == P.PROTOCOL_VERSION
         assert status["mode"] == "idle"
-        from firmware.controller import PARAMS
+        from firmware.protocol import PARAMS
 
         assert board.call("get", "slew") == dict((r[0], r[1]) for r in PARAMS)["slew"]
 
@@ -250,8 +250,10 @@ def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
     from host.link.virtual_board import DEFAULT_BOARD, install_factory
 
     install_factory(root, DEFAULT_BOARD)
-    app = root / "firmware" / "app.py"
-    app.write_text(app.read_text().replace('VERSION = "%s"' % VERSION, 'VERSION = "0.0.0-old"'))
+    protocol = root / "firmware" / "protocol.py"
+    text = protocol.read_text()
+    assert 'VERSION = "%s"' % VERSION in text
+    protocol.write_text(text.replace('VERSION = "%s"' % VERSION, 'VERSION = "0.0.0-old"'))
     with VirtualBoard(root=root, factory=False) as old:
         with pytest.raises(UserError, match="board runs firmware 0.0.0-old, this host expects"):
             BoardClient(old.path)

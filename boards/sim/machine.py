@@ -1,6 +1,7 @@
 """A module shaped like MicroPython's `machine`, backed by the simulated actuator.
 
-`configure(board, seed)` builds the world from a board dict (boards/sim.json). Pins are labels:
+`configure(board, seed)` builds the world from a board dict (boards/sim.json); `for_board(path)`
+does it from a board file and returns the module, the firmware's `machine`. Pins are labels:
 an ADC pin's label names the sensor channel wired to it ("pot1" carries the nut's pot), motor
 pins the H-bridge inputs (board["motor_pins"]). How the actuator is wired is part of the plant,
 not of the board file: `actuator.wiring` can say that it is wired wrongly, as a first bench
@@ -76,6 +77,20 @@ def configure(board, seed=None):
     _pwms = {}
     _max_catchup = int(params.get("machine", {}).get("max_catchup_ticks", 20))
     return _world
+
+
+def for_board(path):
+    """Build the world for the board file at `path` and return this module: the `machine` a
+    simulated board's firmware runs on (the virtual board installs it as `machine` before the
+    firmware boots; tests hand it to App as machine=)."""
+    import json
+
+    import boards.sim.machine as this
+
+    with open(path) as f:
+        board = json.load(f)
+    configure(board, board.get("seed"))
+    return this
 
 
 def world():

@@ -2,9 +2,10 @@
 
 `BoardClient(port)` opens the port (a one-line UserError when it is missing, busy, not running
 our firmware, running another version, or lacks a needed calibration), checks `status`, and then
-`request(cmd, *args)` sends one command line and waits for its reply frame, resending the same
-line on timeout (the firmware answers a repeated line with its cached reply, so a retry never
-runs a command twice). Telemetry frames that arrive meanwhile are queued for `frames()`.
+`request(cmd, *args)` checks the command against firmware.protocol.COMMANDS (its name and each
+argument's kind, as the board will), sends one command line and waits for its reply frame,
+resending the same line on timeout (the firmware answers a repeated line with its cached reply,
+so a retry never runs a command twice). Telemetry frames that arrive meanwhile are queued for `frames()`.
 Which port to open (a device, `auto`, `sim`) is host/link/connect.py's business.
 """
 
@@ -24,12 +25,6 @@ HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 
 class BoardError(UserError):
     """The firmware refused or failed a command; the message is the firmware's reason."""
-
-
-def expected_firmware_version():
-    from firmware.app import VERSION
-
-    return VERSION
 
 
 class BoardClient:
@@ -90,7 +85,7 @@ class BoardClient:
                 )
         if status.get("protocol") != P.PROTOCOL_VERSION:
             raise UserError("board speaks protocol %s, this host %s: reflash (host flash)" % (status.get("protocol"), P.PROTOCOL_VERSION))
-        want = expected_firmware_version()
+        want = P.VERSION
         if status.get("version") != want:
             raise UserError("board runs firmware %s, this host expects %s: reflash (host flash --port %s)" % (status.get("version"), want, self.port))
         if require_calibration and status.get("calibration_crc") is None:
@@ -131,7 +126,10 @@ class BoardClient:
 
     def request(self, name, *args, timeout=None, retries=None):
         """Send one command; return the result of its ok frame, raise BoardError on an error
-        frame and TimeoutError when no reply came after all retries."""
+        frame and TimeoutError when no reply came after all retries. The command and its
+        arguments are checked against the board's interface (firmware.protocol.COMMANDS) first:
+        ValueError for one the board would refuse, before anything is sent."""
+        P.arguments(name, args)
         seq = self._next_seq()
         line = P.format_command(seq, name, *args)
         timeout = self.timeout if timeout is None else timeout

@@ -1,4 +1,4 @@
-"""Record board telemetry to CSV: one row per record, columns = firmware.telemetry.FIELDS.
+"""Record board telemetry to CSV: one row per record, columns = firmware.protocol.FIELDS.
 
 `record(board, path, seconds, rate)` streams from a BoardClient, writes rows as they arrive (so a
 Ctrl-C or a lost port still leaves a complete file up to the last frame), keeps the host timeout
@@ -15,9 +15,8 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from firmware.controller import MODE_NAMES
+from firmware.protocol import FIELDS, MODES
 from firmware.safety import FAULT_NAMES
-from firmware.telemetry import FIELDS
 
 # Each column's unit (a new telemetry field must say its unit here: tests check)
 UNITS = {
@@ -76,7 +75,7 @@ def metadata(status, rate):
         "calibration_error": status.get("calibration_error"),
         "loop_period_us": status.get("period_us"), "stream_hz": rate,
         "columns": {name: UNITS[name] for name in FIELDS},
-        "modes": {str(i): name for i, name in enumerate(MODE_NAMES)},
+        "modes": {str(i): name for i, name in enumerate(MODES)},
         "faults": {str(bit): name for bit, name in FAULT_NAMES},
     }
 

@@ -47,12 +47,25 @@ _FRIENDLY_PROMPT = b">>> "
 
 RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
 
-# Runs first in every micropython process: mount the board's flash as "/", and give `machine` a
-# reset() (the unix port has none) that exits with RESET_EXIT so the relay reboots into main.py,
-# as mpremote's `reset` expects of a board.
+# Runs first in every micropython process: mount the board's flash as "/"; install as `machine`
+# the simulated actuator's (boards/sim/machine.py, built from board.json) when the board file
+# says it is simulated, else the unix port's; and give it a reset() (the unix port has none) that
+# exits with RESET_EXIT so the relay reboots into main.py, as mpremote's `reset` expects of a board.
 _BOOT = """\
 import os, sys
+os.mount(os.VfsPosix(%r), '/')
+os.chdir('/')
+sys.path[:] = ['', '.frozen', '/lib']
 import machine as _hw_machine
+try:
+    import json
+    with open('board.json') as _f:
+        _simulated = json.load(_f).get('simulated')
+except (OSError, ValueError):
+    _simulated = False
+if _simulated:
+    from boards.sim.machine import for_board
+    _hw_machine = for_board('board.json')
 class _VirtualMachine:
     def __getattr__(self, name):
         return getattr(_hw_machine, name)
@@ -60,9 +73,6 @@ class _VirtualMachine:
         _exit(%d)
 sys.modules['machine'] = _VirtualMachine()
 del _VirtualMachine
-os.mount(os.VfsPosix(%r), '/')
-os.chdir('/')
-sys.path[:] = ['', '.frozen', '/lib']
 if %r and 'main.py' in os.listdir('/'):
     del os, sys
     exec(open('main.py').read(), {'__name__': '__main__'})
@@ -229,7 +239,7 @@ class VirtualBoard:
             os.setsid()
             fcntl.ioctl(0, termios.TIOCSCTTY, 0)
 
-        args = [micropython_executable(), "-X", "heapsize=" + HEAP, "-i", "-c", _BOOT % (RESET_EXIT, str(self.root), run_main)]
+        args = [micropython_executable(), "-X", "heapsize=" + HEAP, "-i", "-c", _BOOT % (str(self.root), RESET_EXIT, run_main)]
         self._child = subprocess.Popen(
             args, stdin=child_side, stdout=child_side, stderr=child_side, cwd=str(self.root),
             preexec_fn=controlling_tty, close_fds=True,
