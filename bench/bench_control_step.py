@@ -149,18 +149,14 @@ def measure(f, n):
 
 
 def run_all(path, n):
-    import json
+    from testkit.replay import load, replay_app
 
-    import firmware_cases
-
-    with open(path) as f:
-        data = json.load(f)
+    data = load(path)
     rows = []
     for kind in ("bcm3", "pwl"):
-        data["cal"] = data["cals"][kind]
         for mode, target, ftarget in (("idle", 0, 0), ("open_loop", 2500, 2500.0),
                                       ("position", 31000, 31000.0), ("force", 2000, 2000.0)):
-            app, _ = firmware_cases.make_app(data, with_cal=True)
+            app, _ = replay_app(data, calibration=kind)
             app.set_param("host_timeout_ms", 600000)
             app.set_stream(100)
             app.set_mode(mode)
@@ -175,30 +171,36 @@ def run_all(path, n):
 
 
 def _prepare(path):
-    """CPython: record ADC codes from the sim and make bcm3 and pwl calibrations from it."""
+    """CPython: record ADC codes from the sim and write bcm3 and pwl calibration files beside them
+    (the model calibration of testkit.model; the bcm3 pots fitted to one noisy read per place)."""
     import json
+    from pathlib import Path
 
-    import fake_hardware
     from boards.sim.actuator import Actuator
+    from host.calibration.file import write_calibration
     from host.calibration.fixed_export import export_bcm3
+    from testkit import model
 
-    board = fake_hardware.sim_board()
-    cal_pwl = fake_hardware.model_calibration(board)
+    board = model.sim_board()
+    pwl = model.model_document(board)
     world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 3)
-    cal_bcm = dict(cal_pwl)
+    bcm = dict(pwl)
     fl = {"bcm3": {}, "pwl": {}}
-    for name, fit in fake_hardware.bcm3_pot_fits(board, noisy=True, seed=3).items():
+    for name, fit in model.bcm3_pot_fits(board, noisy=True, seed=3).items():
         c = fit.coefficients
-        cal_bcm[name] = ["bcm3", list(export_bcm3(c, board["adc_bits"], max_error_um=1e9))]
+        bcm[name] = {"kind": "bcm3", "fixed": list(export_bcm3(c, board["adc_bits"], max_error_um=1e9))}
         fl["bcm3"][name] = ["bcm", c["lx"], c["rx"], list(c["weights"]), list(c["handles"])]
-        k = cal_pwl[name][1]
+        k = pwl[name]["fixed"]
         n, s = k[0], k[1]
         fl["pwl"][name] = ["pwl", [v / 2**s for v in k[2:2 + n]], [v / 1000.0 for v in k[2 + n:]]]
-    # float polynomials (mm domain) fitted the same way model_calibration does
+    # float polynomials (mm domain) fitted the same way the model calibration does
     for kind in fl:
         fl[kind].update(_float_polys(board, world))
-    data = {"codes": fake_hardware.record_codes(board, steps=400, duty=3000),
-            "cals": {"bcm3": cal_bcm, "pwl": cal_pwl}, "float": fl}
+    calibrations = {}
+    for kind, doc in (("bcm3", bcm), ("pwl", pwl)):
+        calibrations[kind] = str(Path(path).with_name("%s.json" % kind))
+        write_calibration(calibrations[kind], doc)
+    data = {"codes": model.record_codes(board, steps=400, duty=3000), "calibrations": calibrations, "float": fl}
     with open(path, "w") as f:
         json.dump(data, f)
 
@@ -219,13 +221,12 @@ def _float_polys(board, world):
 def main():
     import argparse
     import json
-    import sys
     import tempfile
     from pathlib import Path
 
+    from testkit.interpreters import run_micropython
+
     here = Path(__file__).resolve().parent
-    sys.path.insert(0, str(here.parent / "tests"))
-    from micropython_runner import run_micropython
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--steps", type=int, default=5000, help="steps timed per mode (default 5000)")
@@ -237,7 +238,7 @@ def main():
         print("timing %d steps per mode on MicroPython ..." % args.steps, flush=True)
         proc = run_micropython(
             "import json, bench_control_step as b\nprint(json.dumps(b.run_all(%r, %d)))" % (path, args.steps),
-            extra_paths=[here, here.parent / "tests"], timeout=600,
+            extra_paths=[here], timeout=600,
         )
     rows = json.loads(proc.stdout.strip().splitlines()[-1])
     print("%-5s %-10s %14s %14s %14s %14s %8s" % ("pots", "mode", "fixed us/step", "fixed B/step",

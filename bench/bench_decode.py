@@ -12,12 +12,9 @@ import random
 import struct
 import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from firmware import protocol as P  # noqa: E402
-from host.link.frames import FrameDecoder  # noqa: E402
+from firmware import protocol as P
+from host.link.frames import FrameDecoder
 
 
 def build_stream(n_frames, records, noise_every=1000):

@@ -10,15 +10,11 @@ compare OPENBLAS_NUM_THREADS=1 against the default.
 import argparse
 import os
 import statistics
-import sys
 import time
-from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from host.fitting.example_sweep import simulate_sweep  # noqa: E402
-from host.fitting.models import fit_model  # noqa: E402
-from host.fitting.sweep import sweep_from_arrays  # noqa: E402
+from host.fitting.example_sweep import simulate_sweep
+from host.fitting.models import fit_model
+from host.fitting.sweep import sweep_from_arrays
 
 BASELINES = ("pcm", "pcm-raw", "cheb", "spline", "pchip", "lut", "pwl")
 

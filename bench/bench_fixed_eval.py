@@ -8,20 +8,15 @@ MicroPython unix port (x64; a board is 10-50x slower, scale accordingly).
 """
 
 import argparse
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
-
-from host.fitting.example_sweep import simulate_sweep  # noqa: E402
-from host.calibration.fixed_export import export_bcm3, export_curve_table, export_poly, export_pwl  # noqa: E402
-from host.fitting.rational_bezier import evaluate, fit_bcm  # noqa: E402
-from host.fitting.sweep import load_sweep  # noqa: E402
-from micropython_runner import REPO, run_micropython  # noqa: E402
+from host.fitting.example_sweep import simulate_sweep
+from host.calibration.fixed_export import export_bcm3, export_curve_table, export_poly, export_pwl
+from host.fitting.rational_bezier import evaluate, fit_bcm
+from host.fitting.sweep import load_sweep
+from testkit.interpreters import REPO, run_micropython
 
 KNEE = {"lx": 60.0, "rx": 3950.0, "weights": [1.0, 12.0, 12.0, 1.0], "handles": [0.0, 1.5, 58.5, 60.0]}
 POLYS = {

@@ -35,7 +35,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
 
 RUN_ON_MCU = REPO.parent / "shared" / "mcu" / "run-on-mcu"
 CPUS = {
@@ -245,16 +244,17 @@ def sim_codes(board):
 
 
 def calibration_files(board, out_dir):
-    """[(label, file name)] written by host.calibration.file from fits to the simulated actuator."""
-    sys.path.insert(0, str(REPO / "tests"))
-    import fake_hardware
+    """[(label, file name)] written by host.calibration.file from fits to the simulated actuator:
+    the pots fitted to a noisy sweep, Df, force and friction from the model calibration
+    (testkit.model)."""
     from boards.sim.actuator import Actuator
     from host.calibration.file import new_document, pot_section, write_calibration
     from host.fitting.models import fit_model
+    from testkit.model import model_sections
 
     sim = json.loads((REPO / "boards" / "sim.json").read_text())
     sim["adc_bits"] = board["adc_bits"]
-    model = fake_hardware.model_calibration(sim)
+    model = model_sections(sim)
     world = Actuator(dict(sim["actuator"], adc_bits=board["adc_bits"]), 3)
     sweeps = {}
     for i, name in enumerate(("pot1", "pot2")):
@@ -270,10 +270,8 @@ def calibration_files(board, out_dir):
         doc = new_document(board=board["name"])
         for name, (x, y) in sweeps.items():
             doc[name] = pot_section(fit_model(model_name, x, y, order), board["adc_bits"])
-        doc["df"] = {"kind": "poly", "fixed": model["df"]}
-        doc["force"] = {"kind": "poly", "fixed": model["force"]}
-        doc["force_inverse"] = {"kind": "poly", "fixed": model["force_inverse"]}
-        doc["friction"] = {"kind": "friction", "fixed": model["friction"]}
+        for section in ("df", "force", "force_inverse", "friction"):
+            doc[section] = model[section]
         fname = "cal_%s.json" % model_name
         write_calibration(out_dir / fname, doc)
         files.append((label, fname))

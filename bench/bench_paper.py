@@ -66,7 +66,6 @@ PAPER = {
 
 
 def main(argv=None):
-    sys.path.insert(0, str(REPO))
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default="out/paper")
     ap.add_argument("--doc", default=str(REPO / "docs" / "paper-experiments.md"))

@@ -25,7 +25,6 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
 
 # name: (low, high) of a uniform draw; documented in docs/robustness.md with the results
 RANGES = {

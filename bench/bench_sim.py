@@ -100,9 +100,9 @@ if __name__ == "__main__":
         import os
         import subprocess
 
+        from testkit.interpreters import REPO, micropython_env, micropython_executable
+
         here = os.path.dirname(os.path.abspath(__file__))
-        sys.path.insert(0, os.path.join(os.path.dirname(here), "tests"))
-        from micropython_runner import REPO, micropython_env, micropython_executable
 
         cmd = [micropython_executable(), "-X", "heapsize=8M", os.path.join(here, "bench_sim.py")]
         subprocess.run(cmd, cwd=str(REPO), env=micropython_env(), check=True)

@@ -17,10 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-
-from host.link.board_client import BoardClient  # noqa: E402
-from host.link.virtual_board import VirtualBoard  # noqa: E402
+from host.link.board_client import BoardClient
+from host.link.virtual_board import VirtualBoard
 
 MPREMOTE = str(Path(sys.executable).parent / "mpremote")
 

@@ -10,19 +10,17 @@ longer than --max-samples are thinned to every k-th sample (both fits see the sa
 """
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
 
-from host.fitting.compare import parse_orders  # noqa: E402
-from host.fitting.fit_result import residual_stats  # noqa: E402
-from host.fitting.rational_bezier import fit_bcm, fit_bcm_global  # noqa: E402
-from host.fitting.sweep import load_sweep  # noqa: E402
+from host.fitting.compare import parse_orders
+from host.fitting.fit_result import residual_stats
+from host.fitting.rational_bezier import fit_bcm, fit_bcm_global
+from host.fitting.sweep import load_sweep
 
 REALDATA = REPO.parent / "shared" / "realdata"
 

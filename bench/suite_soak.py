@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/suite_soak.py --reps 3                 # as the machine is
     .venv/bin/python bench/suite_soak.py --reps 3 --busy 2        # two CPU-bound processes meanwhile
-    .venv/bin/python bench/suite_soak.py --reps 5 -- tests/test_sim_machine.py   # a subset
+    .venv/bin/python bench/suite_soak.py --reps 5 -- tests/sim/test_machine.py   # a subset
 
 Each repetition is `python -m pytest -q -n 2 --dist loadfile -rA --junitxml=OUT/rep-K.xml` (the README's test
 command; `--workers 0` runs without pytest-xdist; plus anything after `--`), run from the repository; per-test outcomes come from the junit XML. `--busy N` starts N

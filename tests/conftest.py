@@ -1,12 +1,8 @@
 import os
-import sys
-from pathlib import Path
 
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from micropython_runner import REPO, run_micropython  # noqa: E402
+from testkit.interpreters import REPO, run_micropython
 
 SHARED = REPO.parent / "shared"
 REALDATA = SHARED / "realdata"

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-FIRMWARE_TESTS = ["tests/test_firmware_cases.py", "tests/test_firmware_wrap.py"]
+FIRMWARE_TESTS = ["tests/firmware/test_app.py", "tests/firmware/test_wrap.py"]
 # (what, file, code, broken code[, tests that must catch it]); firmware breaks run FIRMWARE_TESTS
 BREAKS = [
  ("watchdog armed only in position and force mode, not open loop", "firmware/controller.py",
@@ -33,30 +33,30 @@ BREAKS = [
   "        if n < SILENCE_CAP:  # bounded however long the host is gone", "        if True:"),
  ("flash skips its CRC read-back", "host/link/flashing.py",
   "            if int(got.get(name, -1)) != crc:", "            if False:",
-  ["tests/test_flash.py::test_flash_reads_back_every_file_it_installed"]),
+  ["tests/link/test_flash.py::test_flash_reads_back_every_file_it_installed"]),
  ("flash removes the live file before moving the new one in (not an atomic swap)", "host/link/flashing.py",
   "        try:\n            os.rename(new, live)\n        except OSError:",
   "        try:\n            _rmtree(live)\n            import time\n            time.sleep(1)\n            os.rename(new, live)\n        except OSError:",
-  ["tests/test_flash.py::test_flash_killed_at_many_points_leaves_old_or_new_calibration"]),
+  ["tests/link/test_flash.py::test_flash_killed_at_many_points_leaves_old_or_new_calibration"]),
  ("flash installs a calibration without checking it first", "host/link/flashing.py",
   "    check_files(board_path, calibration)\n", "",
-  ["tests/test_flash.py::test_flash_refuses_bad_files_and_another_board_before_touching_the_board"]),
+  ["tests/link/test_flash.py::test_flash_refuses_bad_files_and_another_board_before_touching_the_board"]),
  ("host calibrate writes an empty file before measuring", "host/guided/flow.py",
   "    for step in steps:\n        if step == \"pots\":",
   "    write_calibration(path, new_document(board=board_name))\n    for step in steps:\n        if step == \"pots\":",
-  ["tests/test_calibrate_keeps.py"]),
+  ["tests/guided/test_calibrate_keeps.py"]),
  ("the 31-bit proof of a polynomial skips two corners of each Horner step", "firmware/poly_fixed.py",
   "            lo = min(c1, c2, c3, c4)\n            hi = max(c1, c2, c3, c4)", "            lo = min(c1, c4)\n            hi = max(c1, c4)",
-  ["tests/test_poly_fixed.py"]),
+  ["tests/firmware/test_poly_fixed.py"]),
  ("the 31-bit proof of a polynomial forgets the final rounding", "firmware/poly_fixed.py",
   "        if max(-lo, hi) >= 2 * _B29 - ((1 << k[4]) >> 1):", "        if False:",
-  ["tests/test_poly_fixed.py"]),
+  ["tests/firmware/test_poly_fixed.py"]),
  ("saved parameters are loaded without their range check", "firmware/saved_params.py",
   "        if not table[i][2] <= value <= table[i][3]:", "        if False:",
-  ["tests/test_params.py"]),
+  ["tests/link/test_params.py"]),
  ("saved parameters are loaded without their CRC check", "firmware/saved_params.py",
   "    if len(last) != 2 or last[0] != \"crc\" or last[1] != ", "    if len(last) != 2 or last[0] != \"crc\" or False and last[1] != ",
-  ["tests/test_params.py"]),
+  ["tests/link/test_params.py"]),
 ]
 
 

@@ -1,7 +1,7 @@
 """Render docs/protocol.md from firmware/protocol.py: the version, the commands with their
 arguments' kinds, the modes, the parameter table, the frame types and the telemetry record.
 
-`python -m host.link.protocol_doc` rewrites the file; tests/test_protocol_doc.py fails when the file
+`python -m host.link.protocol_doc` rewrites the file; tests/link/test_protocol_doc.py fails when the file
 is not what this renders, so the document can never drift from the code.
 """
 

@@ -1,0 +1,1 @@
+"""The calibration file: writing, reading, corruption, its description for people."""

@@ -1,0 +1,136 @@
+"""Bench commands on the virtual board with a load on the block (`--load`): `host force` settles
+against the simulated force gauge and says in one line when it cannot (no load: Fig. 8's run to
+a stroke end). The real unix port, firmware, pty and pyserial, through the host CLI."""
+
+import json
+import re
+
+import pytest
+
+from boards.sim import bench_rig, machine
+from host import cli
+from host.link.telemetry_log import load
+from host.link.virtual_board import parse_load
+from testkit.interpreters import REPO
+
+from testkit.model import write_model_calibration
+
+BOARD = json.loads((REPO / "boards" / "sim.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cal") / "cal.json"
+    write_model_calibration(path, date="2026-03-03")
+    return str(path)
+
+
+def test_parse_load_takes_the_documented_forms_and_refuses_the_rest():
+    assert parse_load("none") == {"kind": "none"}
+    assert parse_load("gauge") == {"kind": "gauge", "side": "high"}  # anchored where the board file says
+    assert parse_load("gauge@40.5") == {"kind": "gauge", "side": "high", "anchor_mm": 40.5}
+    assert parse_load("gauge-low@20") == {"kind": "gauge", "side": "low", "anchor_mm": 20.0}
+    assert parse_load("constant:-2.5") == {"kind": "constant", "force_n": -2.5}
+    for bad in ("", "gauge@", "gauge@x", "gauge:40", "constant", "constant:", "constant:nan", "none:1", "spring", "gaugex", "gauge-high"):
+        with pytest.raises(ValueError, match=re.escape("load must be none, gauge[@MM], gauge-low[@MM] or constant:N")):
+            parse_load(bad)
+
+
+def test_rig_file_constant_load_pushes_the_block(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    world = machine.configure(BOARD, seed=3)
+    (tmp_path / "rig.json").write_text(json.dumps({"load": parse_load("constant:-2.5")}))
+    bench_rig.poll(world)
+    assert world.load_kind == "constant" and world.external_force_n == -2.5
+    start = world.block_mm
+    world.advance(0.2)
+    assert world.block_mm < start - 1.0  # 2.5 N toward 0 mm beats 0.3 N of friction
+
+
+def test_load_on_a_real_port_is_a_one_line_error(capsys):
+    assert cli.main(["status", "--port", "/dev/ttyACM9", "--load", "gauge"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: a load can be hooked only on a virtual board (port sim)")
+
+
+def test_bad_load_is_refused_by_the_parser(capsys):
+    assert cli.main(["force", "--port", "sim", "--load", "spring", "--target", "-5"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "load must be none, gauge[@MM], gauge-low[@MM] or constant:N" in err
+
+
+def test_help_of_sim_and_force_tells_how_to_hook_a_load(capsys):
+    for command in ("sim", "force"):
+        assert cli.main([command, "--help"]) == 0
+        text = " ".join(capsys.readouterr().out.split())
+        assert "--load none|gauge[@MM]|gauge-low[@MM]|constant:N" in text and "force gauge" in text
+
+
+def test_force_on_port_sim_with_the_gauge_settles_on_the_target(calibration, capsys):
+    code = cli.main(["force", "--port", "sim", "--load", "gauge@40", "--calibration", calibration, "--target", "-5"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert out.startswith("reached at ")
+    assert abs(float(out.split()[2]) + 5.0) <= 0.1  # the firmware's F0(d), mean of the last 0.1 s
+
+
+def test_positive_force_on_port_sim_settles_against_a_gauge_on_the_low_side(calibration, capsys):
+    code = cli.main(["force", "--port", "sim", "--load", "gauge-low@20", "--calibration", calibration, "--target", "5"])
+    out = capsys.readouterr().out
+    assert code == 0, out
+    assert abs(float(out.split()[2]) - 5.0) <= 0.1
+
+
+def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, capsys):
+    # Nothing to push against: the block runs toward 0 mm until the soft stroke limit holds it
+    # (Fig. 8 of the paper), and the force never builds up.
+    code = cli.main(["force", "--port", "sim", "--calibration", calibration, "--target", "-5", "--timeout", "10"])
+    captured = capsys.readouterr()
+    assert code == 2 and captured.out == ""
+    lines = [line for line in captured.err.split("\n") if line.strip()]
+    final = lines[-1]
+    assert final.startswith("error: force did not settle: ") and "(target -5.000 N)" in final
+    assert "at the 0 mm stroke end: nothing to push against? hook a load (--port sim: --load gauge)" in final
+    assert sum("did not settle" in line for line in lines) == 1
+
+
+def test_log_and_plot_from_a_calibrated_board_warn_of_nothing(calibration, tmp_path, capsys):
+    out = tmp_path / "run.csv"
+    assert cli.main(["log", "--port", "sim", "--calibration", calibration, "--out", str(out), "--seconds", "0.5", "--rate", "100"]) == 0
+    assert "warning" not in capsys.readouterr().err
+    data = load(out)
+    assert len(data["t_us"]) > 20 and abs(data["d2_um"].mean() - 30000) < 1000  # the block boots at 30 mm
+    assert cli.main(["plot", str(out)]) == 0
+    assert capsys.readouterr().err == "" and out.with_suffix(".png").stat().st_size > 10000
+
+
+def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys):
+    """The reported sequence on one virtual board: move --hold, the host goes quiet and the
+    watchdog latches host_timeout, then `host stop` clears it (named), and the next move runs;
+    `host reset` names and clears any latched fault; `host status` shows every field (timing,
+    stroke limits) and --json gives the firmware's object."""
+    import time
+
+    from host.link.virtual_board import VirtualBoard
+
+    with VirtualBoard(calibration=calibration) as vb:
+        port = vb.path
+        assert cli.main(["move", "--port", port, "--to", "25", "--hold"]) == 0
+        time.sleep(1.5)
+        capsys.readouterr()
+        assert cli.main(["status", "--port", port, "--json"]) == 0
+        st = json.loads(capsys.readouterr().out)
+        assert st["faults"] == ["host_timeout"], st
+        for key in ("step_us_max", "overruns", "period_us", "stroke_um", "steps", "duty", "timer", "last_exit"):
+            assert key in st, key
+        assert cli.main(["stop", "--port", port]) == 0
+        out = capsys.readouterr().out
+        assert "cleared host_timeout" in out and out.rstrip().endswith("stopped"), out
+        assert cli.main(["move", "--port", port, "--to", "30"]) == 0, capsys.readouterr()
+        capsys.readouterr()
+        assert cli.main(["reset", "--port", port]) == 0
+        assert capsys.readouterr().out.strip() == "no latched faults"
+        assert cli.main(["status", "--port", port]) == 0
+        text = capsys.readouterr().out
+        assert "longest step (us)" in text and "overruns" in text and "soft stroke limits (um)" in text
+        assert "latched faults                 none" in text, text

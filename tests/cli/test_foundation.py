@@ -1,0 +1,49 @@
+"""The package installs, the CLI answers, and the real MicroPython interpreter is available."""
+
+import subprocess
+import sys
+
+from testkit.interpreters import run_micropython
+
+
+def test_cli_help_lists_commands():
+    out = subprocess.run([sys.executable, "-m", "host", "--help"], capture_output=True, text=True)
+    assert out.returncode == 0
+    assert "usage: host" in out.stdout
+
+
+def test_micropython_is_real_and_locks_heap():
+    proc = run_micropython(
+        "import sys, micropython\n"
+        "print(sys.implementation.name)\n"
+        "def f():\n"
+        "    return [1]\n"
+        "micropython.heap_lock()\n"
+        "try:\n"
+        "    f()\n"
+        "    print('allocated')\n"
+        "except MemoryError:\n"
+        "    print('locked')\n"
+        "micropython.heap_unlock()\n"
+    )
+    assert proc.stdout.split() == ["micropython", "locked"]
+
+
+def test_firmware_package_imports_under_micropython():
+    proc = run_micropython("import firmware\nprint('ok')")
+    assert proc.stdout.strip() == "ok"
+
+
+def test_missing_shared_data_skips_with_the_reason_but_fails_under_ci(tmp_path, monkeypatch):
+    import pytest
+    from tests.conftest import shared_dir
+
+    missing = tmp_path / "shared" / "realdata"
+    monkeypatch.delenv("CI", raising=False)
+    with pytest.raises(pytest.skip.Exception, match="realdata is missing: the curves"):
+        shared_dir(missing, "the curves")
+    monkeypatch.setenv("CI", "true")
+    with pytest.raises(pytest.fail.Exception, match="under CI"):
+        shared_dir(missing, "the curves")
+    missing.mkdir(parents=True)
+    assert shared_dir(missing, "the curves") == missing  # present: no skip, CI or not

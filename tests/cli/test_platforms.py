@@ -1,0 +1,52 @@
+"""The host CLI where POSIX-only modules are missing (Windows): every command builds and the
+board-free ones run; only the virtual board, which needs a pseudo-terminal, says in one line
+that it cannot run there. Simulated by refusing fcntl, termios, tty and pty to our own packages
+(pyserial keeps its own platform choice)."""
+
+import subprocess
+import sys
+
+import pytest
+
+from testkit.interpreters import REPO
+
+GUARD = """
+import sys, builtins
+real = builtins.__import__
+def guard(name, globals=None, *a, **k):
+    importer = (globals or {}).get("__name__", "")
+    if name.split(".")[0] in ("fcntl", "termios", "tty", "pty") and importer.split(".")[0] in ("host", "boards", "firmware"):
+        raise ImportError("No module named %r (simulated Windows)" % name)
+    return real(name, globals, *a, **k)
+builtins.__import__ = guard
+from host import cli
+sys.exit(cli.main(sys.argv[1:]))
+"""
+
+
+def _host(*args):
+    return subprocess.run([sys.executable, "-c", GUARD, *args], cwd=REPO, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.parametrize("args", [["--help"], ["fit", "examples/sweep_60mm.csv"], ["flash", "--help"], ["log", "--help"],
+                                  ["move", "--help"], ["status", "--help"], ["compare", "--help"], ["demo", "--help"]])
+def test_commands_run_without_posix_modules(args):
+    proc = _host(*args)
+    assert proc.returncode == 0, proc.stderr
+    assert "Traceback" not in proc.stderr
+
+
+def test_the_virtual_board_says_in_one_line_where_it_cannot_run():
+    proc = _host("status", "--port", "sim")
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: the virtual board") and "pseudo-terminal" in lines[0], proc.stderr
+
+
+def test_a_missing_tool_names_the_install_command_for_this_kind_of_install(monkeypatch, tmp_path):
+    import host.errors as errors
+
+    assert errors.install_hint("sim") == "pip install -e '.[sim]'"  # this checkout
+    monkeypatch.setattr(errors, "__file__", str(tmp_path / "site-packages" / "host" / "errors.py"))
+    assert errors.install_hint("sim") == "pip install 'lsea-kit[sim]'"
+    assert errors.install_hint() == "pip install 'lsea-kit'"

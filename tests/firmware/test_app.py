@@ -1,0 +1,172 @@
+"""The App's cases (tests/firmware/app_cases.py), each run under CPython and MicroPython."""
+
+import pytest
+
+from testkit import interpreters, model
+from testkit.interpreters import REPO, run_micropython
+from tests.firmware import app_cases
+
+CASES = "tests.firmware.app_cases"
+
+
+@pytest.fixture(scope="module")
+def data_path(tmp_path_factory):
+    """ADC codes recorded from the simulated actuator, with its model calibration (pwl pots)."""
+    return model.write_replay_data(tmp_path_factory.mktemp("fw"), steps=600, duty=3000)
+
+
+@pytest.fixture(scope="module")
+def bcm3_data_path(tmp_path_factory):
+    """The same recording with the pots as the paper's BCM-3 (bcm3 words)."""
+    return model.write_replay_data(tmp_path_factory.mktemp("fw_bcm3"), steps=600, duty=3000, pots="bcm3")
+
+
+def both(call, data_path=None):
+    return interpreters.both(CASES, call.replace("PATH", repr(data_path)))
+
+
+def test_every_module_imports_on_both():
+    here, there = both("case_imports()")
+    assert here["modules"] == there["modules"] == list(app_cases.MODULES)
+    every = sorted(p.stem for p in (REPO / "firmware").glob("*.py") if p.stem != "__init__")
+    assert sorted(app_cases.MODULES) == every  # a new module joins the list or fails here
+
+
+@pytest.mark.parametrize("pots", ["pwl", "bcm3"])
+@pytest.mark.parametrize(
+    "mode,target", [("idle", 0), ("open_loop", 2500), ("position", 20000), ("force", 3000)]
+)
+def test_step_allocates_nothing_under_heap_lock(request, pots, mode, target):
+    path = request.getfixturevalue("data_path" if pots == "pwl" else "bcm3_data_path")
+    here, there = both("case_heap_lock(PATH, %r, %d)" % (mode, target), path)
+    assert there["locked"] is True  # the real interpreter really locked the heap
+    assert there["before"] == there["after"], there
+    assert here["duty"] == there["duty"]  # same integers on both interpreters
+    if mode in ("position", "force"):  # the step really converted through this kind of pot
+        assert here["pots"] == there["pots"] == [pots, pots]
+
+
+@pytest.mark.parametrize("pot", ["pot1", "pot2"])
+def test_wiper_lift_stops_motor_within_one_period(data_path, pot):
+    here, there = both("case_rail_fault(PATH, %r)" % pot, data_path)
+    assert here == there
+
+
+def test_host_silence_stops_motor(data_path):
+    here, there = both("case_host_timeout(PATH)", data_path)
+    assert "50 ms" in here["fault"] and here == there
+
+
+def test_exception_in_step_leaves_pwm_zero(data_path):
+    here, there = both("case_step_exception(PATH)", data_path)
+    assert "OSError" in here["fault"] and "OSError" in there["fault"]
+
+
+def test_keyboard_interrupt_in_run_leaves_pwm_zero(data_path):
+    here, there = both("case_keyboard_interrupt(PATH)", data_path)
+    assert here["duty_seen"] > 0 and here == there
+
+
+def test_closed_loop_refused_without_calibration(data_path):
+    here, there = both("case_refused_without_calibration(PATH)", data_path)
+    assert here == there
+
+
+def test_load_force_is_a_play_operator_of_the_block_friction(data_path):
+    here, there = both("case_load_force_play(PATH)", data_path)
+    assert here == there
+
+
+def test_slew_limit(data_path):
+    here, there = both("case_slew(PATH)", data_path)
+    assert here == there
+
+
+def test_pi_anti_windup():
+    here, there = both("case_anti_windup()")
+    assert here == there
+
+
+def test_motor_wiring_two_drivers():
+    here, there = both("case_motor_wiring()")
+    assert here == there
+
+
+def test_telemetry_ring():
+    here, there = both("case_ring()")
+    assert here == there
+
+
+def test_board_files_load_and_broken_ones_are_explained():
+    here, there = both("case_board_files()")
+    assert here == there and here["boards"] == ["pico", "esp32_devkitc", "pyboard", "sim"]
+
+
+def test_pyboard_pwm_adapter():
+    here, there = both("case_pyboard_pwm_adapter()")
+    assert here == there
+
+
+def test_watchdog_stops_every_motion_mode(data_path):
+    here, there = both("case_watchdog_in_every_motion_mode(PATH)", data_path)
+    assert here == there
+
+
+def test_every_command_counts_as_hearing_the_host(data_path):
+    here, there = both("case_commands_count_as_hearing_the_host(PATH)", data_path)
+    assert here == there
+
+
+def test_targets_and_parameters_out_of_range_are_refused(data_path):
+    here, there = both("case_range_checks(PATH)", data_path)
+    assert here == there
+
+
+def test_a_silent_host_gets_the_boot_parameters_back(data_path):
+    here, there = both("case_host_silence_restores_params(PATH)", data_path)
+    assert here == there and here["restored_at"] == 50
+
+
+def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
+    """Empty, truncated, not JSON, deeply nested (200 KB and 60 KB of '['), huge, binary: the App boots
+    with no calibration on both interpreters and says why (a board that cannot boot cannot be
+    repaired from the host)."""
+    import json as _json
+
+    good = _json.dumps({"format": "lsea-kit calibration", "schema": 1, "crc32": 0, "payload": "{}"})
+    files = {
+        "empty.json": b"",
+        "truncated.json": good[: len(good) // 2].encode(),
+        "text.json": b"hello",
+        "nested.json": b"[" * 200000 + b"]" * 200000,  # refused by size before parsing
+        "nested_small.json": b"[" * 30000 + b"]" * 30000,  # under the size limit: the parser's recursion
+        "huge.json": b'{"format": "' + b"x" * 2000000 + b'"}',
+        "binary.json": bytes(range(256)) * 16,
+        "missing.json": None,
+    }
+    paths = []
+    for name, data in files.items():
+        p = tmp_path / name
+        if data is not None:
+            p.write_bytes(data)
+        paths.append(str(p))
+    here, there = both("case_boot_survives_any_calibration(None, %r)" % paths)
+    assert len(here["why"]) == len(there["why"]) == len(files)
+
+
+def test_board_main_puts_back_a_calibration_an_interrupted_install_left_aside(tmp_path):
+    """board_main.run recovers calibration.json from calibration.json.old before anything
+    else, even when the boot then fails (here: no board file)."""
+    (tmp_path / "calibration.json.old").write_text("{}")
+    src = (
+        "import os\nos.chdir(%r)\nfrom firmware.board_main import run\n"
+        "try:\n    run('no_board.json', 'calibration.json')\nexcept Exception:\n    print('boot failed')\n"
+        "print(sorted(os.listdir('.')))\n" % str(tmp_path)
+    )
+    out = run_micropython(src).stdout
+    assert "boot failed" in out and "['calibration.json']" in out, out
+
+
+def test_a_falling_pot_curve_and_another_boards_calibration_are_refused(data_path):
+    here, there = both("case_calibrations_the_board_refuses(PATH)", data_path)
+    assert here == there

@@ -1,0 +1,1 @@
+"""The fitting math: calibration curves, their selection, noise floors, sweeps, comparisons."""

@@ -1,0 +1,1 @@
+"""The guided calibration, bringup, the experiments' math and report, and gain tuning."""

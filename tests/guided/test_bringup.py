@@ -1,0 +1,82 @@
+"""First power-up checks (`host calibrate bringup`) on virtual actuators wired wrongly: the motor
+leads swapped, the pots swapped, a pot's track reversed, and two at once. Each is found, said
+with the board-file setting that fixes it, and with --fix the corrected board file is flashed and
+the checks pass on it. The real unix port, firmware, pty, mpremote and the physical model."""
+
+import json
+
+import pytest
+
+from host import cli
+from host.guided.bringup import Wiring
+from testkit.interpreters import REPO
+
+SIM = json.loads((REPO / "boards" / "sim.json").read_text())
+
+
+def board_file(tmp_path, **wiring):
+    board = json.loads(json.dumps(SIM))
+    if wiring:
+        board["actuator"]["wiring"] = wiring
+    path = tmp_path / "actuator.json"
+    path.write_text(json.dumps(board, indent=1))
+    return path
+
+
+def bringup(tmp_path, board, *extra):
+    out = tmp_path / "cal.json"
+    code = cli.main(["calibrate", "bringup", "--port", "sim", "--board", str(board), "--yes", "--out", str(out), *extra])
+    record = json.loads((tmp_path / "cal.bringup.json").read_text())
+    return code, record
+
+
+def test_a_well_wired_actuator_passes_and_a_full_run_then_skips_bringup(tmp_path, capsys):
+    code, record = bringup(tmp_path, board_file(tmp_path))
+    out = capsys.readouterr().out
+    assert code == 0 and record["ok"] and record["problems"] == [], out
+    assert "pot 1 moved" in out and "loop period" in out and "micropython" in out
+    from host.guided.flow import bringup_done
+
+    assert bringup_done(tmp_path / "cal.json", "sim")["ok"]
+
+
+@pytest.mark.parametrize("wiring, setting, fix", [
+    ({"motor_reversed": True}, '"motor_invert": true', {"motor_invert": True}),
+    ({"adc": {"pot1": "pot2", "pot2": "pot1"}}, 'swap the "pot1" and "pot2" entries of "adc_pins"',
+     {"adc_pins": {"pot1": "pot2", "pot2": "pot1"}}),
+    ({"pot_reversed": ["pot1"]}, 'add "pot1" to "pot_invert"', {"pot_invert": ["pot1"]}),
+    # swapped, and the block's pot (now read as pot 1) reversed: the flag must follow it to pot 2
+    ({"adc": {"pot1": "pot2", "pot2": "pot1"}, "pot_reversed": ["pot2"]}, '"adc_pins"',
+     {"adc_pins": {"pot1": "pot2", "pot2": "pot1"}, "pot_invert": ["pot2"]}),
+])
+def test_a_miswired_actuator_is_found_named_and_fixed(tmp_path, capsys, wiring, setting, fix):
+    board = board_file(tmp_path, **wiring)
+    before = board.read_text()
+    code, record = bringup(tmp_path, board)
+    out = capsys.readouterr()
+    assert code == 2 and not record["ok"], out.out
+    assert any(setting in p for p in record["problems"]), record["problems"]
+    assert "bringup found" in out.err and len(out.err.strip().splitlines()) == 1
+    assert board.read_text() == before  # nothing changed without consent
+
+    code, record = bringup(tmp_path, board, "--fix")
+    out = capsys.readouterr().out
+    assert code == 0 and record["ok"], out
+    fixed = json.loads(board.read_text())
+    for key, value in fix.items():
+        got = {k: fixed[key][k] for k in value} if key == "adc_pins" else fixed[key]  # other pins stay
+        assert got == value, (key, fixed.get(key))
+    assert "after the fix" in out and list(tmp_path.glob("actuator.json.*.bak"))
+
+
+def test_fixes_follow_the_pot_they_belong_to():
+    board = {"adc_pins": {"pot1": "A", "pot2": "B"}, "pot_invert": ["pot1"]}
+    w = Wiring()
+    w.motor_ok, w.swapped, w.falls = True, True, {"pot1": False, "pot2": True}
+    # pot1 (pin A) is read right only thanks to its flag; pot2 (pin B) falls. After the swap
+    # pin B becomes pot1 and needs a flag, pin A becomes pot2 and keeps its flag.
+    assert w.fixes(board) == {"adc_pins": {"pot1": "B", "pot2": "A"}, "pot_invert": ["pot1", "pot2"]}
+    w.swapped, w.falls = False, {"pot1": True, "pot2": False}
+    assert w.fixes(board) == {"pot_invert": []}
+    w.motor_ok = False
+    assert w.fixes(dict(board, motor_invert=True))["motor_invert"] is False

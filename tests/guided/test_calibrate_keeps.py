@@ -1,0 +1,130 @@
+"""`host calibrate` never destroys a calibration it has not replaced: nothing is written before
+a step is accepted, the previous file is kept under a dated name before the first change, and
+an interrupted run leaves the file as the last accepted step left it. The real flow
+(host.guided.flow.run_steps) and calibration-file code; the measuring steps are stand-ins that
+return sections from the model calibration (or raise, as Ctrl-C or a lost board would)."""
+
+import json
+
+import pytest
+
+from firmware.calibration import load_calibration
+from host.calibration.file import read_calibration, write_calibration
+from host.guided import flow
+from host.guided.outcome import StepOutcome
+from testkit.model import model_sections
+
+
+def _sections():
+    cal = model_sections()
+    return {
+        "pots": {n: dict(cal[n], pot_id="%s-new" % n) for n in ("pot1", "pot2")},
+        "assembly": {"df": cal["df"]},
+        "force": {n: cal[n] for n in ("force", "force_inverse", "friction")},
+    }
+
+
+class Quiet:
+    yes = True
+
+    def __init__(self):
+        self.said = []
+
+    def say(self, text):
+        self.said.append(text)
+
+    def accept(self, question):
+        return True
+
+
+class Session:
+    board = {"name": "sim", "adc_bits": 12}
+
+    def __init__(self):
+        self.flashed = []
+
+    def flash(self, path):
+        load_calibration(str(path))  # what the firmware would check
+        self.flashed.append(path)
+
+
+@pytest.fixture
+def old_file(tmp_path):
+    """A complete calibration made earlier (all sections), the file the run must not lose."""
+    sec = _sections()
+    doc = {"board": "sim", "pots": {"pot1": "old-1", "pot2": "old-2"}, "date": "2026-01-01T00:00:00+00:00"}
+    for step in ("pots", "assembly", "force"):
+        doc.update(sec[step])
+    doc["pot1"] = dict(doc["pot1"], pot_id="old-1")
+    doc["pot2"] = dict(doc["pot2"], pot_id="old-2")
+    path = tmp_path / "calibration.json"
+    write_calibration(path, doc)
+    return path
+
+
+def _steps(monkeypatch, fail_at=None, failure=KeyboardInterrupt()):
+    sec = _sections()
+
+    def step(name):
+        def run(*a, **k):
+            if name == fail_at:
+                raise failure
+            return StepOutcome(name, sec[name], ["fitted"], [])
+        return run
+
+    import host.guided.assembly_calibration as a
+    import host.guided.force_calibration as f
+    import host.guided.pot_calibration as p
+
+    monkeypatch.setattr(p, "calibrate_pots", step("pots"))
+    monkeypatch.setattr(a, "calibrate_assembly", step("assembly"))
+    monkeypatch.setattr(f, "calibrate_force", step("force"))
+
+
+def _backups(path):
+    return sorted(path.parent.glob(path.name + ".*.bak"))
+
+
+@pytest.mark.parametrize("fail_at", ["pots", "assembly", "force"])
+def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at):
+    before = old_file.read_bytes()
+    _steps(monkeypatch, fail_at=fail_at)
+    with pytest.raises(KeyboardInterrupt):
+        flow.run_steps(Session(), None, Quiet(), flow.STEPS, flow.Options(out=old_file))
+    if fail_at == "pots":  # nothing accepted: the file is untouched, no backup needed
+        assert old_file.read_bytes() == before and _backups(old_file) == []
+        return
+    (backup,) = _backups(old_file)
+    assert backup.read_bytes() == before  # every old section kept, under a dated name
+    now = read_calibration(old_file)
+    assert now["pot1"]["pot_id"] == "pot1-new"  # the accepted pots were written
+    # Df and force measured through the old curves went with them, unless re-measured here
+    assert ("df" in now) == (fail_at == "force") and "force" not in now
+
+
+def test_a_single_step_keeps_the_previous_file_and_changes_only_its_sections(old_file, monkeypatch):
+    before = read_calibration(old_file)
+    _steps(monkeypatch)
+    flow.run_steps(Session(), None, Quiet(), ("assembly",), flow.Options(out=old_file))
+    (backup,) = _backups(old_file)
+    assert read_calibration(backup) == before
+    now = read_calibration(old_file)
+    for name in ("pot1", "pot2", "force", "force_inverse", "friction"):
+        assert now[name] == before[name], name
+
+
+def test_a_corrupt_file_is_kept_aside_by_a_full_run_and_refused_by_a_step(tmp_path, monkeypatch):
+    from host.errors import UserError
+
+    path = tmp_path / "calibration.json"
+    corrupt = '{"format": "lsea-kit calibration", "schema": 1, "crc32": 1, "payload": "{}"}'
+    path.write_text(corrupt)
+    _steps(monkeypatch, fail_at="pots", failure=AssertionError("measured"))
+    with pytest.raises(UserError):  # a single step needs the file's other sections
+        flow.run_steps(Session(), None, Quiet(), ("assembly",), flow.Options(out=path))
+    assert path.read_text() == corrupt and _backups(path) == []
+    _steps(monkeypatch)
+    flow.run_steps(Session(), None, Quiet(), flow.STEPS, flow.Options(out=path))
+    (backup,) = _backups(path)
+    assert backup.read_text() == corrupt
+    assert set(read_calibration(path)) >= {"pot1", "pot2", "df", "force", "force_inverse", "friction"}

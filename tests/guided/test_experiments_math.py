@@ -1,0 +1,150 @@
+"""The pieces of the experiments and guided fits that need no board: the nominal 2-point pot
+calibration, the Df order choice by cross-validation, the force hysteresis measure."""
+
+import pytest
+import numpy as np
+
+from firmware.calibration import convert, pot_constants
+from host.experiments.variants import nominal_pot_section
+from host.fitting.assembly import choose_order, fit_df
+from host.fitting.force import hysteresis_n
+
+
+def test_nominal_pot_is_the_line_through_the_end_readings():
+    raw = np.linspace(300, 3900, 500)
+    ref = 60 * ((raw - 300) / 3600) ** 1.3  # a bent pot
+    section = nominal_pot_section(raw, ref, 12, "pot2")
+    kind, k = pot_constants(section, "pot2")
+    assert kind == "pwl"
+    for code, want_um in ((300, 0.0), (2100, 30000.0), (3900, 60000.0)):
+        assert abs(convert(kind, code, k) - want_um) <= 10  # straight line, not the bent curve
+
+
+def test_df_order_by_cross_validation_finds_the_true_degree():
+    rng = np.random.default_rng(2)
+    x = np.sort(rng.uniform(0, 60, 2000))
+    v = (x - 30) / 30
+    df = 4.6 * v**4 - 0.5 * v**3 + 0.1 * v + rng.normal(0, 0.02, x.size)
+    order, scores = choose_order(x, df, "auto")
+    assert order == 4
+    assert scores[3] > 2 * scores[4]
+    coeffs, resid, used, _ = fit_df(x, df, 4)
+    assert used == 4 and np.max(np.abs(resid)) < 0.1
+
+
+def test_force_hysteresis_is_the_gap_between_loading_and_unloading():
+    d = np.tile(np.linspace(-1.4, -0.2, 8), 2)
+    loading = np.repeat([True, False], 8)
+    f = 12.4 * d + np.where(loading, -0.3, 0.3)  # friction opposes the motion each way
+    assert abs(hysteresis_n(d, f, loading, 2) - 0.6) < 1e-6
+    assert np.isnan(hysteresis_n(d[:3], f[:3], loading[:3], 2))
+
+
+def _results(after_error_mm, df_binned_mm, force_pct):
+    """A results dict shaped like host.experiments.paper.run_paper's, with chosen figures."""
+    targets = (1, 30, 59)
+    fig7 = {
+        "before": [{"target": float(t), "reference": t - 2.0, "error": 2.0, "d2": float(t), "settled": True} for t in targets],
+        "after": [{"target": float(t), "reference": t - after_error_mm, "error": after_error_mm, "d2": float(t),
+                   "settled": t != 59} for t in targets],
+    }
+    table1 = []
+    for side, sign in (("high", -1.0), ("low", 1.0)):
+        for m, phase in ((5.0, "loading"), (10.0, "loading"), (15.0, "loading"), (10.0, "unloading"), (5.0, "unloading")):
+            target = sign * m
+            measured = target * (1 + force_pct / 100.0)
+            table1.append({"target": target, "measured": measured, "estimate": measured, "side": side, "phase": phase,
+                           "steady_pct": 100.0 * (measured - target) / abs(target), "estimation_pct": 0.0})
+    return {
+        "board": "sim", "simulated": True, "port": "sim", "model": "auto (budget 32 numbers)",
+        "pot_models": {"pot1": "pwl order 12", "pot2": "pwl order 11"},
+        "method": {"df_order": "auto", "force_order": "auto", "gauge_sides": "both", "friction": True, "budget": 32,
+                   "rounds": 2, "force_order_chosen": 4},
+        "calibration": {"pots": ["pot1 fit: pwl"], "assembly": ["Df: order 7"], "force": ["force: h"]},
+        "calibration_plots": ["calibration-pot1.png"],
+        "paper_method_offline": {"pot1": {"rms_mm": 0.075, "max_mm": 0.19}, "pot2": {"rms_mm": 0.095, "max_mm": 0.42},
+                                 "df4_binned_mm": 0.3, "force2_rms_n": 0.22},
+        "fig3a": [{"model": "bcm", "order": 3, "norm2": 3.9}] + [{"model": "pcm", "order": n, "norm2": 40.0 / n} for n in range(2, 13)],
+        "fig5": {"order": 7, "peak_before_mm": 4.5, "peak_after_mm": 0.15, "peak_after_binned_mm": df_binned_mm,
+                 "rms_after_mm": 0.037, "n_samples": 1964},
+        "force_fit": {"coeffs_f": [0.25, -0.08, 12.6, 0.03], "coeffs_d": [0.0, 0.079, 0.0], "hysteresis_n": 0.53,
+                      "friction_n": 0.21, "rms_n": 0.03, "rms_plain_n": 0.24, "sides": ["high", "low"]},
+        "fig7": fig7,
+        "fig8": [("without Df", {"final": 40.2, "target_n": 5.0}), ("with Df", {"final": 59.4, "target_n": 5.0}),
+                 ("with Df", {"final": 0.6, "target_n": -1.0})],
+        "dead_zone": {"rows": [{"target": -0.2, "measured": -0.1, "estimate": -0.2}], "dead_zone_n": 0.2},
+        "table1": table1,
+        "timings": {"calibration": 100.0, "total": 250.0},
+        "stroke_mm": [0.5, 59.5], "sim_block_friction_n": 0.3, "preload_n": 0.5,
+    }
+
+
+def test_report_renders_every_section_and_judges_each_target(tmp_path):
+    from types import SimpleNamespace
+
+    from host.experiments import report
+
+    opts = SimpleNamespace()  # everything the report says comes from the results
+    text = report.write(tmp_path, _results(0.05, 0.2, 1.0), opts).read_text()
+    for heading in ("## Summary", "## Fig. 3a", "## Fig. 5", "## Fig. 7", "## Fig. 8", "## Force dead zone", "## Table 1"):
+        assert heading in text
+    lines = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ")}
+    assert "<= 0.1 mm: met" in lines["displacement control (Fig. 7), max error 1-59 mm"]
+    assert "NOT met" in lines["Df calibration (Fig. 5)"]  # 0.2 mm of bin means
+    assert "no blocking at +-1 to 10 N: met" in lines["force control 5 N at no load from 30 mm (Fig. 8)"]
+    assert "worst of all 10 steps (both signs, loading and unloading) 1.0 %" in text and "<= 2 %: met" in text
+    assert "0.30 N in the simulated actuator's file, 6 % of 5 N" in text and "(0.5 and 59.5 mm)" in text
+    assert "Df order: auto -> 7. Force: order auto -> 4" in text and "2 force identification rounds" in text
+    assert "a 0.5 N preload took up the fibre's slack" in text
+    assert "| 30 | 28.000 | 2.000 | 29.950 | 0.050 |" in text and "0.050 (not settled)" in text  # 59 mm unsettled
+    worse = report.write(tmp_path, _results(0.5, 0.05, 3.0), opts).read_text()
+    assert "<= 0.1 mm: **NOT met**" in worse and "<= 2 %: **NOT met**" in worse
+
+
+@pytest.mark.parametrize("failure", [TimeoutError("no reply to stream"), KeyboardInterrupt()], ids=["board-gone", "ctrl-c"])
+def test_a_stopped_experiment_keeps_what_it_measured(tmp_path, monkeypatch, capsys, failure):
+    """The board stops answering (or Ctrl-C) in the middle of the control experiments: the
+    sections measured before are in results.json, report.md says where and why it stopped, and
+    the command ends with one error line and status 1, no traceback."""
+    import json
+
+    import host.experiments.paper as paper
+    import host.guided.session as session_mod
+    from host import cli
+
+    def fake_run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
+        results.update({"board": "sim", "simulated": True, "port": "sim"})
+        progress = paper.Progress(out_dir, results)
+        progress.start("calibration")
+        results["pot_models"] = {"pot1": "pwl order 12", "pot2": "pwl order 11"}
+        results["fig5"] = {"order": 7}
+        progress.done()
+        progress.start("Fig. 7 and Fig. 8")
+        results["fig7"] = {"before": [{"target": 1.0}]}
+        raise failure
+
+    class FakeSession:
+        def __init__(self, *a, **k):
+            self.board = {"name": "sim", "adc_bits": 12, "simulated": True}
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+    monkeypatch.setattr(paper, "run_paper", fake_run_paper)
+    monkeypatch.setattr(session_mod, "Session", FakeSession)
+    monkeypatch.setattr("host.commands.experiment.make_rig", lambda *a: None, raising=False)
+    monkeypatch.setattr("host.guided.rig.reference_scale", lambda *a: 1.0)
+    out = tmp_path / "run"
+    code = cli.main(["experiment", "paper", "--port", "sim", "--out", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 1
+    assert len(err) == 1 and err[0].startswith("error: the experiment stopped during Fig. 7 and Fig. 8: "), err
+    assert "Traceback" not in "\n".join(err)
+    saved = json.loads((out / "results.json").read_text())
+    assert saved["completed"] == ["calibration"] and saved["fig5"] == {"order": 7}
+    assert saved["stopped"]["phase"] == "Fig. 7 and Fig. 8"
+    report = (out / "report.md").read_text()
+    assert "stopped during **Fig. 7 and Fig. 8**" in report and "pwl order 12" in report

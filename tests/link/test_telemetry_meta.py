@@ -1,0 +1,32 @@
+"""A telemetry log says what its numbers are: RUN.meta.json beside RUN.csv (board, firmware,
+calibration CRC, loop period, rate, date, each column's unit, the mode and fault code tables)."""
+
+import json
+
+from firmware.protocol import FIELDS, MODES
+from firmware.safety import FAULT_NAMES
+from host import cli
+from host.link.telemetry_log import UNITS, load
+
+from testkit.model import write_model_calibration
+
+
+def test_every_column_has_a_unit():
+    assert set(UNITS) == set(FIELDS)
+
+
+def test_host_log_writes_the_metadata_beside_the_csv(tmp_path, capsys):
+    cal = tmp_path / "cal.json"
+    write_model_calibration(cal, date="2026-03-03")
+    out = tmp_path / "run.csv"
+    assert cli.main(["log", "--port", "sim", "--calibration", str(cal), "--seconds", "0.5", "--rate", "200",
+                     "--out", str(out)]) == 0
+    assert "run.meta.json" in capsys.readouterr().out
+    meta = json.loads((tmp_path / "run.meta.json").read_text())
+    assert meta["board"] == "sim" and meta["stream_hz"] == 200 and meta["loop_period_us"] == 1000
+    assert meta["calibration_crc"] == "%08x" % json.loads(cal.read_text())["crc32"]
+    assert list(meta["columns"]) == list(FIELDS) and meta["date"].endswith("+00:00")
+    assert meta["modes"] == {str(i): n for i, n in enumerate(MODES)}
+    assert meta["faults"] == {str(b): n for b, n in FAULT_NAMES}
+    data = load(out)  # the CSV itself stays a plain table
+    assert len(data["t_us"]) >= 50 and set(data["mode"]) <= {int(k) for k in meta["modes"]}

@@ -1,0 +1,345 @@
+"""Firmware cases on the simulated actuator (boards/sim, a physical model), run under both CPython
+and MicroPython like tests/firmware/app_cases.py. `path` is a calibration file (testkit.model),
+loaded by the firmware's own loader.
+"""
+
+from boards.sim.machine import for_board
+
+
+def load_calibration(path):
+    """The firmware's Calibration of the file at `path` (imported here, not at the top: a test
+    may have replaced the firmware modules by then)."""
+    from firmware.calibration import load_calibration as load_file
+
+    return load_file(path)
+
+
+def case_position_sim(path, targets, settle_ticks=1500, hold_ticks=300):
+    """Position mode on the simulated actuator (boards/sim, a physical model) from mid-stroke.
+
+    For each target: settle, then over `hold_ticks` record the firmware's own D2 and the true
+    travel of pot 2's wiper (the quantity pot 2 was calibrated against, so the two agree up to
+    the calibration and noise errors). Returns the worst of each, and the worst overshoot.
+    """
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    app.set_calibration(load_calibration(path))
+    app.start()
+    world = sim.world()
+    pot2 = world.pots[1]
+    sim.run_ticks(10)
+    app.set_mode("position")
+    out = {"fw_err_um": 0, "true_err_um": 0, "overshoot_um": 0}
+    for target in targets:
+        app.set_target(target)
+        start = app.ctrl.meas.d2
+        k = 0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            x = world.block_mm
+            travel = int((x + pot2.mount_error_mm(x)) * 1000.0)
+            over = travel - target if target > start else target - travel
+            if over > out["overshoot_um"]:
+                out["overshoot_um"] = over
+            if k >= settle_ticks:
+                e = abs(app.ctrl.meas.d2 - target)
+                if e > out["fw_err_um"]:
+                    out["fw_err_um"] = e
+                e = abs(travel - target)
+                if e > out["true_err_um"]:
+                    out["true_err_um"] = e
+            k += 1
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "position", st
+    return out
+
+
+def case_boot_calibration_file(good_path, bad_path):
+    """App reads the calibration file at boot: a good file enables closed loop (status has its
+    CRC); a corrupt one leaves raw readings and open loop working and says why closed loop is
+    refused."""
+    from firmware.app import App
+
+    good = App("boards/sim.json", good_path, machine=for_board("boards/sim.json"))
+    st = good.status()
+    assert st["calibration_error"] is None and isinstance(st["calibration_crc"], int), st
+    good.step(None)
+    good.set_mode("position")
+    good.set_mode("force")
+    bad = App("boards/sim.json", bad_path, machine=for_board("boards/sim.json"))
+    st = bad.status()
+    assert st["calibration_crc"] is None and "CRC" in st["calibration_error"].upper(), st
+    try:
+        bad.set_mode("position")
+        raise AssertionError("closed loop accepted with a corrupt calibration")
+    except ValueError as exc:
+        assert "calibration" in str(exc)
+    bad.set_mode("open_loop")
+    bad.set_target(1000)
+    bad.step(None)
+    assert bad.ctrl.duty > 0 and bad.sampler.raw2 > 0
+    missing = App("boards/sim.json", bad_path + ".absent", machine=for_board("boards/sim.json"))
+    assert "no calibration file" in missing.status()["calibration_error"], missing.status()
+    return {"crc": good.status()["calibration_crc"], "error": st["calibration_error"]}
+
+
+def case_force_sim(path, targets, settle_ticks=2000, hold_ticks=500):
+    """Force mode on the simulated actuator pulling the force gauge through the fibre (the paper's section 4).
+
+    For each target: settle, then average over `hold_ticks` the firmware's force estimate
+    F0(d) and the model's true spring force. Returns the worst |mean - target| of each, mN.
+    """
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    app.set_calibration(load_calibration(path))
+    app.start()
+    world = sim.world()
+    world.set_load("gauge")
+    sim.run_ticks(10)
+    app.set_mode("force")
+    out = {"est_err_mN": 0, "true_err_mN": 0}
+    for target in targets:
+        app.set_target(target)
+        est, true = _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=True)
+        e = abs(est - target)
+        if e > out["est_err_mN"]:
+            out["est_err_mN"] = e
+        e = abs(true - target)
+        if e > out["true_err_mN"]:
+            out["true_err_mN"] = e
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "force", st
+    return out
+
+
+def _run(app, ticks):
+    """Advance the simulated board `ticks` control periods, the host heard at each."""
+    import boards.sim.machine as sim
+
+    k = 0
+    while k < ticks:
+        sim.run_ticks(1)
+        app.heartbeat()
+        k += 1
+
+
+def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
+    """Run, then average the firmware's force estimate and the true force (mN): the load's
+    (the actuator's force is what the load resists), or with `spring` the spring's."""
+    import boards.sim.machine as sim
+
+    k = 0
+    est = 0
+    true = 0.0
+    while k < settle_ticks + hold_ticks:
+        sim.run_ticks(1)
+        app.heartbeat()
+        if k >= settle_ticks:
+            est += app.ctrl.meas.force
+            true += world.spring_force_n * 1000.0 if spring else -world.external_force_n * 1000.0
+        k += 1
+    return est // hold_ticks, int(true / hold_ticks)
+
+
+def _hooked_on_side(path, side, anchor, gap_um):
+    """A started app with the file's calibration, the block moved `gap_um` to the slack side of
+    the anchor, the gauge hooked on `side`: (app, world, sign of the forces against it)."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    app.set_calibration(load_calibration(path))
+    app.start()
+    world = sim.world()
+    sign = -1 if side == "high" else 1
+    app.set_mode("position")
+    app.set_target(anchor - sign * gap_um)
+    _run(app, 1500)
+    world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
+    return app, world, sign
+
+
+def case_force_points_sim(path, side, levels, anchor=45000):
+    """Force identification as the guided step does it, on the simulated actuator: open-loop duty
+    steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
+    app, world, sign = _hooked_on_side(path, side, anchor, 1500)
+    app.set_mode("open_loop")
+    rows = []
+    seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
+    previous = 0
+    for duty, loading in seq:
+        j = 1
+        while j <= 10:  # ramped over 0.3 s, as host/guided/force_calibration.py does
+            app.set_target(sign * (previous + (duty - previous) * j // 10))
+            _run(app, 30)
+            j += 1
+        previous = duty
+        _run(app, 500)  # come to rest against the fibre
+        k = 0
+        defl = 0
+        while k < 300:
+            _run(app, 1)
+            defl += app.ctrl.meas.defl
+            k += 1
+        rows.append([defl // 300, int(-world.external_force_n * 1000.0), loading])
+    app.shutdown()
+    return rows
+
+
+def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500):
+    """Force steps against a gauge on `side`, the fibre just slack, then taken up by a `preload` mN
+    hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each."""
+    app, world, sign = _hooked_on_side(path, side, anchor, 200)
+    app.set_mode("force")
+    if preload:
+        app.set_target(sign * preload)
+        _run(app, 500)
+    rows = []
+    for t in targets:
+        app.set_target(t)
+        est, load_mN = _settle_then_mean(app, world, settle_ticks, hold_ticks)
+        rows.append([t, est, load_mN])
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "force", st
+    return rows
+
+
+def case_wiper_lift_sim(path, pot):
+    """A wiper lift in the physical model (boards/sim inject_fault) while position mode drives
+    the motor: the very next timer tick leaves 0 V across the motor and names the pot."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    app.set_calibration(load_calibration(path))
+    app.start()
+    sim.run_ticks(10)
+    app.set_mode("position")
+    app.set_target(app.ctrl.meas.d2 + 10000)
+    sim.run_ticks(50)
+    assert sim.motor_voltage() > 0.5, sim.motor_voltage()
+    sim.world().inject_fault(pot, "wiper_lift")
+    sim.run_ticks(1)
+    volts = sim.motor_voltage()
+    st = app.status()
+    app.shutdown()
+    assert volts == 0, volts
+    assert st["faults"] == ["rail_" + pot] and pot in st["last_fault"], st
+    return {"fault": st["last_fault"]}
+
+
+def case_stroke_limits_sim(path, duty=10000, ticks=1500):
+    """Soft stroke limits on the simulated actuator: open loop at `duty` toward each end stops
+    the motor with the nut and the block short of the firmware's limit and off the hard end stop,
+    and only slows near it; a position target inside the slow zone still settles.
+    Returns the extremes reached (um, true positions) and the duty seen on the way."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    app.set_calibration(load_calibration(path))
+    app.start()
+    world = sim.world()
+    lo = app.get_param("stroke_min_um")
+    hi = app.get_param("stroke_max_um")
+    zone = app.get_param("slow_zone_um")
+    sim.run_ticks(10)
+    out = {}
+    for sign in (1, -1):
+        app.set_mode("open_loop")
+        app.set_target(sign * duty)
+        extreme = -1000.0
+        far_duty = 0  # the largest duty while more than a slow zone from the limit
+        k = 0
+        while k < ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            m = app.ctrl.meas
+            pos = world.block_mm if sign > 0 else -world.block_mm
+            nut = world.nut_mm if sign > 0 else -world.nut_mm
+            if max(pos, nut) > extreme:
+                extreme = max(pos, nut)
+            room = hi - max(m.d1, m.d2) if sign > 0 else min(m.d1, m.d2) - lo
+            if room > zone and abs(app.ctrl.duty) > far_duty:
+                far_duty = abs(app.ctrl.duty)
+            if room < zone // 4:
+                assert abs(app.ctrl.duty) <= 10000 * max(room, 0) // zone + 1, (room, app.ctrl.duty)
+            k += 1
+        assert app.ctrl.duty == 0 or abs(app.ctrl.duty) <= 10000 * 100 // zone, app.ctrl.duty
+        assert far_duty == duty, far_duty  # full speed away from the ends: a cap, not a fade
+        out["top_um" if sign > 0 else "bottom_um"] = int(extreme * 1000.0) * sign
+    assert world.block_mm > 0.05 and world.nut_mm > 0.05, (world.block_mm, world.nut_mm)
+    app.set_mode("position")
+    target = hi - zone // 6
+    app.set_target(target)
+    k = 0
+    while k < 3000:
+        sim.run_ticks(1)
+        app.heartbeat()
+        k += 1
+    out["held_um"] = int(world.pots[1].wiper_mm(world.block_mm) * 1000.0)
+    out["target_um"] = target
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [], st
+    return out
+
+
+class QuittingLink:
+    """Polled by run(): keeps the host alive, drives open loop, asks run() to return after
+    `ms` of wall-clock time (the simulated board advances in real time in machine.idle())."""
+
+    def __init__(self, app, ms):
+        import time
+
+        self.time = time
+        self.app = app
+        self.ms = ms
+        self.t0 = None
+        self.volts_seen = 0.0
+
+    def poll(self):
+        import boards.sim.machine as sim
+
+        t = self.time
+        now = t.ticks_ms() if hasattr(t, "ticks_ms") else int(t.monotonic() * 1000)
+        if self.t0 is None:
+            self.t0 = now
+            self.app.set_mode("open_loop")
+            self.app.set_target(3000)
+        self.app.heartbeat()
+        v = sim.motor_voltage()
+        if v > self.volts_seen:
+            self.volts_seen = v
+        if now - self.t0 >= self.ms:
+            self.app.quit()
+
+
+def case_run_realtime_sim():
+    """run() on the simulated board: the timer fires from machine.idle() in real time, the link
+    is polled, and a normal return from run() also leaves the motor off."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    link = QuittingLink(app, 300)
+    app.run(link)
+    st = app.status()
+    assert link.volts_seen > 0.5, link.volts_seen
+    assert sim.motor_voltage() == 0 and st["mode"] == "idle", st
+    assert app.ctrl.steps >= 100, app.ctrl.steps  # 300 ms at 1 kHz, allowing for a slow host
+    return {"ok": True}

@@ -1,0 +1,122 @@
+"""The firmware against the simulated actuator, and booting from real calibration files."""
+
+import numpy as np
+import pytest
+
+from testkit import interpreters, model
+
+CASES = "tests.sim.firmware_cases"
+TARGETS = [10000, 45000, 30000, 5000, 55000]
+
+
+@pytest.fixture(scope="module")
+def cal_path(tmp_path_factory):
+    """The simulated actuator's model calibration file (testkit.model)."""
+    path = tmp_path_factory.mktemp("sim") / "cal.json"
+    model.write_model_calibration(path)
+    return str(path)
+
+
+def on_cpython(call):
+    return interpreters.on_cpython(CASES, call)
+
+
+def on_micropython(call):
+    return interpreters.on_micropython(CASES, call)
+
+
+def test_position_mode_reaches_targets_on_sim(cal_path):
+    call = "case_position_sim(%r, %r)" % (cal_path, TARGETS)
+    for out in (on_cpython(call), on_micropython(call)):
+        # Over 0.3 s after 1.5 s of settling, for targets across 5-55 mm (the paper's usable
+        # range). One code is ~16 um of travel on the simulated pots; a reading is the mean of 4
+        # reads with 1.5 LSB noise each (sigma ~12 um), so the firmware's own D2 strays up to
+        # ~4 sigma plus the table's error near the knees: 150 um. The true wiper travel (the
+        # calibration reference) has the noise averaged out by the loop: 100 um (~6 codes),
+        # 40x better than the paper's 4.2 mm. Overshoot: the slew limit (500/step) and the
+        # motor's inertia allow a few hundred um; 1 mm is the bound.
+        assert out["fw_err_um"] <= 150, out
+        assert out["true_err_um"] <= 100, out
+        assert out["overshoot_um"] <= 1000, out
+
+
+def test_boot_reads_calibration_file_and_refuses_a_corrupt_one(tmp_path, cal_path):
+    good = tmp_path / "good.json"
+    good.write_text(open(cal_path).read())
+    text = good.read_text()
+    i = text.index("fixed") + 12
+    while not text[i].isdigit():
+        i += 1
+    bad = tmp_path / "bad.json"
+    bad.write_text(text[:i] + ("9" if text[i] != "9" else "8") + text[i + 1 :])  # one digit flipped
+    call = "case_boot_calibration_file(%r, %r)" % (str(good), str(bad))
+    assert on_cpython(call) == on_micropython(call)
+
+
+def test_force_mode_holds_gauge_targets_on_sim(cal_path):
+    call = "case_force_sim(%r, %r)" % (cal_path, [-5000, -10000, -15000])
+    for out in (on_cpython(call), on_micropython(call)):
+        # The paper's steps (the paper's section 5): -5, -10, -15 N, measured -5.2 / -10.7 / -14.4 N. After 2 s,
+        # the mean of the firmware's own estimate over 0.5 s: the PI removes its error to within
+        # the estimate's noise (two pots, ~17 um of deformation each read, x 12.4 mN/um, about
+        # 200 mN sigma per step, averaged over 500 steps) plus slow integral convergence: 200 mN.
+        # The true spring force also carries the calibration's deformation error (tens of um
+        # between the two pots' tables and the Df fit, x 12.4 mN/um): 1 N, the paper's worst.
+        assert out["est_err_mN"] <= 200, out
+        assert out["true_err_mN"] <= 1000, out
+
+
+def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_path, cal_path):
+    """The force identification of the guided step (open-loop duty steps against a gauge on each
+    side, F = F0(d) + h s fitted by host/fitting/force.py), then force steps of
+    5-10-15-10-5 N each way: the load's true force and the firmware's estimate both within 2 %
+    of the target, the project's target (the paper: up to 7.0 % and 5.6 %). Without the friction
+    term the same data leave the 5 N steps several % off, so this could fail."""
+    from host.calibration.fixed_export import export_poly
+    from host.fitting.force import fit_force
+    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+
+    points = []
+    for side in ("high", "low"):
+        for d_um, f_mN, loading in on_cpython("case_force_points_sim(%r, %r, %r)" % (cal_path, side, [800, 1600, 2400, 3200, 4000, 4800])):
+            if abs(f_mN) > 300:
+                s = (1 if loading else -1) * (1 if side == "high" else -1)
+                points.append((d_um / 1000.0, f_mN / 1000.0, s))
+    d, f, s = (np.array(c) for c in zip(*points))
+    fit = fit_force(d, f, s, "auto")
+    plain = fit_force(d, f, s, fit.order_f, friction=False)
+    assert 0.15 < fit.friction_n < 0.35 and fit.rms_n < plain.rms_n / 3, (fit, plain)
+    path = tmp_path / "identified.json"
+    model.write_model_calibration(
+        path, friction={"kind": "friction", "fixed": [int(round(fit.friction_n * 1000))]},
+        force={"kind": "poly", "fixed": list(export_poly(fit.coeffs_f, D_RANGE_MM[0], D_RANGE_MM[1], 1000, 1000))},
+        force_inverse={"kind": "poly", "fixed": list(export_poly(fit.coeffs_d, F_RANGE_N[0], F_RANGE_N[1], 1000, 1000))})
+    for side, sign in (("high", -1), ("low", 1)):
+        call = "case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * t for t in (5000, 10000, 15000, 10000, 5000)])
+        here = on_cpython(call)
+        assert here == on_micropython(call)
+        for target, est, load in here:
+            assert abs(load - target) <= 0.02 * abs(target), (side, here)
+            assert abs(est - load) <= 0.02 * abs(load), (side, here)
+
+
+@pytest.mark.parametrize("pot", ["pot1", "pot2"])
+def test_physical_wiper_lift_stops_motor_next_tick(cal_path, pot):
+    call = "case_wiper_lift_sim(%r, %r)" % (cal_path, pot)
+    assert on_cpython(call) == on_micropython(call)
+
+
+def test_soft_stroke_limits_stop_short_of_the_end_stops_and_targets_inside_them_settle(cal_path):
+    call = "case_stroke_limits_sim(%r)" % cal_path
+    here = on_cpython(call)
+    assert here == on_micropython(call)
+    # full duty toward each end: stopped by the firmware within 0.3 mm of its limit (the
+    # calibration's error and the stopping distance), never at the hard stops (0 and 60 mm)
+    assert 59200 <= here["top_um"] <= 59800, here
+    assert 200 <= here["bottom_um"] <= 800, here
+    # a target 0.5 mm inside the limit, in the slow zone, is reached (pot 2's wiper travel)
+    assert abs(here["held_um"] - here["target_um"]) <= 50, here
+
+
+def test_run_in_real_time_on_sim_returns_with_motor_off():
+    assert on_cpython("case_run_realtime_sim()") == on_micropython("case_run_realtime_sim()")
