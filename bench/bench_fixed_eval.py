@@ -43,7 +43,7 @@ def sweep_fits():
 
 def accuracy(n_random):
     print("accuracy against float64 at every 12-bit code (bound 0.5 LSB = 0.5 * span / 4096):")
-    row("bcm3, SPEC-like knee curve", export_bcm3(KNEE, 12))
+    row("bcm3, a knee curve like the paper's Fig. 2c", export_bcm3(KNEE, 12))
     x, y = sweep_fits()
     t0 = time.perf_counter()
     fit3 = fit_bcm(x, y, 3)

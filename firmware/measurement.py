@@ -10,9 +10,8 @@ one (h, the output block's Coulomb friction, mN), the block sits between the spr
 and its friction is a play (backlash) operator in force: while the block sticks, the load's force
 stays put as the spring force changes by up to +-h; once the spring force leaves that band the
 block slides and the load follows it at a distance h. So F = play_h(F0(d)), on F0(d) low-passed
-over ~64 steps: a play operator follows the extremes of its input, so the pots' noise (~0.2 N of
-F0 per step) would walk the band; filtered over 32 steps it still biased the estimate by up to
-0.1 N, over 64 steps by a third of that, and over 128 the lag costs more than it gains. `dir` records which edge moved
+over 64 steps: a play operator follows the extremes of its input, so the pots' noise (~0.2 N of
+F0 per step) would walk the band (docs/firmware.md says why 64). `dir` records which edge moved
 last (+1: the spring force fell, the block slid toward 0 mm; -1: toward 60 mm). A force target
 becomes one deformation target per edge (`deformation_targets`, F0 = target - h * s): the
 controller drives the spring to the edge from which the load's force moves toward the target.

@@ -7,7 +7,7 @@ import time
 from host.commands._options import ranged
 from host.errors import UserError
 from host.fitting.models import MODELS
-from host.fitting.pot_fit import RMS_REFUSE, check_model_available, fit_sweep, poor_fit, refusals
+from host.fitting.pot_fit import RMS_REFUSE, fit_sweep, poor_fit, refusals
 from host.terminal import note
 
 
@@ -76,7 +76,6 @@ def run(args):
     from host.calibration.file import write_pot
     from host.fitting.sweep import adc_bits_of, load_sweep
 
-    check_model_available(args.model)
     say = (lambda msg: None) if args.json else note
     sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()

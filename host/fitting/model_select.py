@@ -10,7 +10,6 @@ floor, because a better fit than the noise allows only learns the noise. If none
 take the most accurate candidate within the parameter budget (default 12 numbers), and say so.
 """
 
-import importlib
 from dataclasses import dataclass, field
 
 from host.fitting.models import fit_model
@@ -27,22 +26,13 @@ class Selection:
     tried: list = field(default_factory=list)  # dicts: model, order, n_params, rms (in the order fitted)
 
 
-def _pwl_available():
-    try:
-        importlib.import_module("host.fitting.piecewise_linear")
-        return True
-    except ImportError:
-        return False
-
-
 def candidates(budget=DEFAULT_BUDGET):
     """(n_params, model, order) the firmware can evaluate, cheapest first, within the budget."""
     out = [(2 * n + 1, "bcm", n) for n in BCM_DEGREES]
-    if _pwl_available():
-        k = 2
-        while 2 * k - 2 <= budget:  # pwl stores interior knot positions and every knot value
-            out.append((2 * k - 2, "pwl", k))
-            k += 1
+    k = 2
+    while 2 * k - 2 <= budget:  # pwl stores interior knot positions and every knot value
+        out.append((2 * k - 2, "pwl", k))
+        k += 1
     return sorted((c for c in out if c[0] <= budget), key=lambda c: (c[0], c[1] != "bcm"))
 
 

@@ -8,11 +8,9 @@ must not become a calibration (a reference that is not a function of the reading
 is not monotone).
 """
 
-import importlib
 import math
 
 from host.errors import UserError
-from host.fitting.models import MODELS
 
 DEFAULT_ORDER = {"bcm": 3, "pcm": 10, "pcm-raw": 10, "cheb": 10, "spline": 8, "pchip": 8, "lut": 16, "pwl": 5}
 MAX_ORDER = 40
@@ -20,17 +18,6 @@ MAX_ORDER = 40
 RMS_WARN = 10  # rms / noise floor: a poor fit (a quadratic on a knee-shaped pot is ~17)
 RMS_REFUSE = 50  # ... and a sweep that is not a calibration (a reference that is not a function of the reading)
 SPAN_REFUSE = 0.02  # rms over 2 % of the reference's span (1.2 mm on a 60 mm pot; BCM-3 leaves ~0.2 %)
-
-
-def check_model_available(model):
-    """UserError when the module that fits `model` is missing from this build ("auto" always is)."""
-    if model == "auto":
-        return
-    module = MODELS[model][0]
-    try:
-        importlib.import_module(module)
-    except ImportError:
-        raise UserError("model %r is not available in this build (module %s is missing)" % (model, module)) from None
 
 
 def fit_sweep(sweep, model="bcm", order=None, bounds="data", budget=12, progress=None):
@@ -43,7 +30,6 @@ def fit_sweep(sweep, model="bcm", order=None, bounds="data", budget=12, progress
     from host.fitting.models import fit_model
     from host.fitting.noise_floor import estimate_hysteresis, estimate_noise
 
-    check_model_available(model)
     try:
         noise = estimate_noise(sweep.x, sweep.y, sweep.direction)
         hyst = estimate_hysteresis(sweep.x, sweep.y, sweep.direction)

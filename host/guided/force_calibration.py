@@ -105,8 +105,8 @@ def _ramp_duty(client, start, end):
     """Open-loop duty from `start` to `end` in RAMP_STEPS steps over RAMP_S. A jump makes the heavy
     nut ring against the spring and the fibre, and the block then sticks anywhere inside its
     friction band; ramped, it comes to rest with the full Coulomb friction against it, as it does
-    under force mode's ramped setpoint (firmware defl_rate_um). On the simulated actuator the
-    friction identified with jumps was 0.23 N, with the ramp 0.28 N (the model's Coulomb: 0.3 N)."""
+    under force mode's ramped setpoint (firmware defl_rate_um; docs/guided-calibration.md has
+    what jumps cost)."""
     for j in range(1, RAMP_STEPS + 1):
         client.call("target", int(round(start + (end - start) * j / RAMP_STEPS)))
         time.sleep(RAMP_S / RAMP_STEPS)

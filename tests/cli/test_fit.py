@@ -185,15 +185,6 @@ def test_demo_writes_report_plots_and_calibration(tmp_path, capsys):
     assert cal.pot1[0] in ("bcm3", "pwl") and cal.pot2[0] == cal.pot1[0]
 
 
-def test_model_without_its_module_is_a_clear_error(monkeypatch, capsys):
-    from host.fitting import models
-
-    monkeypatch.setitem(models.MODELS, "pwl", ("host.not_written_yet", "fit_pwl", "placeholder"))
-    assert main(["fit", EXAMPLE, "--model", "pwl"]) == 2
-    err = capsys.readouterr().err
-    assert "not available" in err and "host.not_written_yet" in err and err.count("\n") == 1
-
-
 def _sweep_file(path, raw, ref):
     with open(path, "w") as f:
         f.write("raw,reference\n")
