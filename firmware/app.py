@@ -14,12 +14,12 @@ from array import array
 from firmware import hal
 from firmware.board_config import load_board
 from firmware.controller import (
+    EF,
     FORCE,
+    PARKED,
     IDLE,
     MODE_NAMES,
     OPEN_LOOP,
-    P_STROKE_MAX,
-    P_STROKE_MIN,
     PARAMS,
     POSITION,
     Controller,
@@ -127,6 +127,8 @@ class App:
         self.stop()
         self.ctrl.meas = None
         self.calibration = None
+        self.ctrl.end_stops = None
+        self.ctrl.apply_params()
         if cal is None:
             self.calibration_error = "no calibration loaded"
             return
@@ -147,6 +149,8 @@ class App:
         self.calibration = cal
         self.calibration_error = None
         self.ctrl.meas = meas
+        self.ctrl.end_stops = getattr(cal, "stroke", None)
+        self.ctrl.apply_params()
 
     # --- commands (each one also counts as hearing from the host) ---------------------------
     def status(self):
@@ -166,7 +170,8 @@ class App:
             "step_us_max": self.ctrl.step_us_max,
             "overruns": self.ctrl.overruns,
             "period_us": self.ctrl.period_us,
-            "stroke_um": [self.ctrl.p[P_STROKE_MIN], self.ctrl.p[P_STROKE_MAX]],
+            "stroke_um": self.ctrl.stroke_limits,
+            "end_stops_um": None if self.ctrl.end_stops is None else list(self.ctrl.end_stops),
             "params_changed": self.params_changed(),
             "params_saved": self.params_saved(),
             "params_file_error": self.params_file_error,
@@ -219,6 +224,8 @@ class App:
         c.pi.reset()
         if mode == POSITION:
             c.target = c.meas.d2  # hold where it is until told otherwise
+            c.st[EF] = 0
+            c.st[PARKED] = 0
         elif mode == FORCE:
             c.set_force_target(0)
             c.fdir = 0

@@ -17,8 +17,11 @@ is also covered by the CRC. Payload keys: "schema", "board", "date", "pots" (ide
 pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl", "fixed": [ints],
 ...float coefficients, units and fit statistics for people}), and the optional "df", "force",
 "force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null), and the optional
-"friction" ({"kind": "friction", "fixed": [h_mN], ...}: the output block's Coulomb friction,
-see firmware/measurement.py).
+"friction" ({"kind": "friction", "fixed": [h_mN] or [h_mN, ff_duty], ...}: the output block's
+Coulomb friction, see firmware/measurement.py, and the duty that makes the motor hold the spring
+at that force, which position control adds to break the block free, see firmware/controller.py), and the optional "stroke" ({"kind": "stroke", "fixed": [low_um,
+high_um]}: where the output block's end stops are in its calibrated position D2, from which the
+controller keeps its soft stroke limits a margin inside, see firmware/controller.py).
 
 `load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
 integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
@@ -44,7 +47,10 @@ PAYLOAD_KEY = '\n"payload": '  # schema 2: the payload object starts after this
 POT_SECTIONS = ("pot1", "pot2")
 POLY_SECTIONS = ("df", "force", "force_inverse")
 FRICTION_SECTION = "friction"
+STROKE_SECTION = "stroke"
+STROKE_MAX_UM = 65535  # measurement.STROKE_CLAMP_UM: positions beyond it are clamped anyway
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
+FF_DUTY_MAX = 5000  # half the duty range: a feed-forward beyond it would be a runaway, not friction
 LIMIT = 1 << 30
 MAX_BYTES = 65536  # the largest calibration file the board reads (ours are a few KB)
 PWL_VALUE_LIMIT = 1 << 29  # pwl_fixed sign-fixes knot values within [-2**29, 2**29)
@@ -177,20 +183,34 @@ def poly_constants(section, name):
 
 
 def friction_constants(section, name=FRICTION_SECTION):
-    """array('i', [h_mN]) of a friction section, checked; None when absent."""
+    """array('i', [h_mN] or [h_mN, ff_duty]) of a friction section, checked; None when absent."""
     if section is None:
         return None
     if not isinstance(section, dict) or section.get("kind", "friction") != "friction":
         raise CalibrationError("section %s: not a friction section" % name)
     values = _int_list(section, name)
-    _check(len(values) == 1, name, "needs [friction mN]")
+    _check(len(values) in (1, 2), name, "needs [friction mN] or [friction mN, feed-forward duty]")
     _check(0 <= values[0] <= FRICTION_MAX_MN, name, "friction must be 0..%d mN" % FRICTION_MAX_MN)
+    _check(len(values) == 1 or 0 <= values[1] <= FF_DUTY_MAX, name, "feed-forward duty must be 0..%d" % FF_DUTY_MAX)
+    return array("i", values)
+
+
+def stroke_constants(section, name=STROKE_SECTION):
+    """array('i', [low_um, high_um]) of the block's end stops, checked; None when absent."""
+    if section is None:
+        return None
+    if not isinstance(section, dict) or section.get("kind", "stroke") != "stroke":
+        raise CalibrationError("section %s: not a stroke section" % name)
+    values = _int_list(section, name)
+    _check(len(values) == 2, name, "needs [low end stop um, high end stop um]")
+    _check(-STROKE_MAX_UM <= values[0] < values[1] <= STROKE_MAX_UM, name,
+           "end stops must rise and lie within +-%d um" % STROKE_MAX_UM)
     return array("i", values)
 
 
 class Calibration:
     """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None,
-    friction as [h_mN] or None."""
+    friction as [h_mN] or None, stroke as [low_um, high_um] or None."""
 
     def __init__(self, body, crc):
         for name in POT_SECTIONS:
@@ -202,6 +222,7 @@ class Calibration:
         self.force = poly_constants(body.get("force"), "force")
         self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
         self.friction = friction_constants(body.get(FRICTION_SECTION))
+        self.stroke = stroke_constants(body.get(STROKE_SECTION))
         self.crc = crc
         self.board = body.get("board")
         self.date = body.get("date")

@@ -60,7 +60,8 @@ TABLES = const(11)  # 1 when D1* and D2 come from the per-code tables
 LAST_CODE = const(12)  # the highest ADC code, 2**adc_bits - 1
 BASE1 = const(13)  # the tables hold D - BASE as uint16
 BASE2 = const(14)
-WORDS = const(15)
+FF_DUTY = const(15)  # the duty that holds the spring at the friction force (0: no feed-forward)
+WORDS = const(16)
 TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
 
@@ -100,10 +101,11 @@ class Measurement:
         self.k_df = calibration.df
         self.k_force = calibration.force
         self.k_force_inv = calibration.force_inverse
-        fr = getattr(calibration, "friction", None)  # [h mN] or None
+        fr = getattr(calibration, "friction", None)  # [h mN], [h mN, ff duty] or None
         st = zeros(WORDS)
         self.st = st
         st[FRIC] = fr[0] if fr is not None else 0
+        st[FF_DUTY] = fr[1] if fr is not None and len(fr) > 1 else 0
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
         st[LAST_CODE] = (1 << self.adc_bits) - 1

@@ -57,7 +57,7 @@ TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
 # arguments must fit +-2**30 (the board's small-int range).
 COMMANDS = (
     ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
-     "step_us_max, overruns, period_us, stroke_um, params_changed, params_saved, params_file_error, params_restored, "
+     "step_us_max, overruns, period_us, stroke_um, end_stops_um, params_changed, params_saved, params_file_error, params_restored, "
      "timer, interpreter, mpy, last_exit, protocol",
      "identify the firmware and report its state (the handshake)"),
     ("stop", (), "null", "motor off, mode idle"),

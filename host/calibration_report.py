@@ -10,10 +10,12 @@ from firmware.calibration import (
     FRICTION_SECTION,
     POLY_SECTIONS,
     POT_SECTIONS,
+    STROKE_SECTION,
     convert,
     friction_constants,
     poly_constants,
     pot_constants,
+    stroke_constants,
 )
 from firmware.poly_fixed import poly
 
@@ -82,10 +84,17 @@ def describe(doc, crc=None):
     for name in POLY_SECTIONS:
         lines += describe_poly(doc[name], name) if doc.get(name) else ["%s: none" % name]
     if doc.get(FRICTION_SECTION):
-        h = friction_constants(doc[FRICTION_SECTION])[0]
-        lines.append("friction: %.3f N (the output block's Coulomb friction, compensated)" % (h / 1000.0))
+        k = friction_constants(doc[FRICTION_SECTION])
+        lines.append("friction: %.3f N (the output block's Coulomb friction, compensated)%s" % (
+            k[0] / 1000.0, "; position control adds %d duty to break the block free" % k[1] if len(k) > 1 else ""))
     else:
         lines.append("friction: none (not compensated)")
+    if doc.get(STROKE_SECTION):
+        lo, hi = stroke_constants(doc[STROKE_SECTION])
+        lines.append("end stops: %.3f and %.3f mm of D2 (stroke %.3f mm; the soft limits stay a margin inside)"
+                     % (lo / 1000.0, hi / 1000.0, (hi - lo) / 1000.0))
+    else:
+        lines.append("end stops: not measured (the soft limits are the stroke_min_um/stroke_max_um parameters alone)")
     return lines
 
 
@@ -96,7 +105,7 @@ def compare(a, b):
     for key in ("board", "date", "pots"):
         if a.get(key) != b.get(key):
             lines.append("%s: %s | %s" % (key, a.get(key), b.get(key)))
-    for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION,):
+    for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION):
         sa, sb = a.get(name), b.get(name)
         if not sa and not sb:
             continue
@@ -124,7 +133,10 @@ def compare(a, b):
                 lines.append("%s: differs by %.0f %s at most over the common inputs %d..%d" % (name, diff.max(), units, x[0], x[-1]))
             else:
                 lines.append("%s: the input ranges do not overlap" % name)
-        else:
+        elif name == FRICTION_SECTION:
             fa, fb = friction_constants(sa)[0], friction_constants(sb)[0]
             lines.append("friction: %.3f N | %.3f N" % (fa / 1000.0, fb / 1000.0))
+        else:
+            (la, ha), (lb, hb) = stroke_constants(sa), stroke_constants(sb)
+            lines.append("end stops: %.3f..%.3f mm | %.3f..%.3f mm" % (la / 1000.0, ha / 1000.0, lb / 1000.0, hb / 1000.0))
     return lines + ["the same calibration"] if len(lines) == same else lines

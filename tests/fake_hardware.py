@@ -123,7 +123,7 @@ def sim_board():
         return json.load(f)
 
 
-def model_calibration(board=None, n_points=61):
+def model_calibration(board=None, n_points=61, feed_forward=False):
     """A calibration of the simulated actuator, made the way the paper makes it, as plain data.
 
     Calibration 1: each pot against its own wiper travel (the reference rides with the pot),
@@ -131,7 +131,8 @@ def model_calibration(board=None, n_points=61):
     at zero load over the stroke, fitted by an 8th-order polynomial in D1 (Df is a quartic in the
     true position, not in D1, which pot 1's own mounting error distorts: order 4 leaves ~0.36 mm,
     order 8 ~26 um). Force: F0(d) and d(F0) fitted (cubic) to the model's spring curve over the
-    cavity, and the block's Coulomb friction. Returns a JSON-able dict.
+    cavity, and the block's Coulomb friction (with `feed_forward`, also the duty that holds the
+    spring at that force, from the motor's stall force). Returns a JSON-able dict.
     """
     import numpy as np
 
@@ -164,7 +165,11 @@ def model_calibration(board=None, n_points=61):
     f = np.array([world.spring_force(v) for v in d])
     cal["force"] = list(export_poly(np.polyfit(d, f, 3), -cav, cav, 1000, 1000))
     cal["force_inverse"] = list(export_poly(np.polyfit(f, d, 3), float(f.min()), float(f.max()), 1000, 1000))
-    cal["friction"] = [int(round(float(board["actuator"]["block"]["coulomb_n"]) * 1000))]  # the block's Coulomb, mN
+    h = float(board["actuator"]["block"]["coulomb_n"])
+    cal["friction"] = [int(round(h * 1000))]  # the block's Coulomb, mN
+    if feed_forward:  # and the duty at which the stalled motor holds the spring at that force
+        stall_n = world.eta * world.kt * world.G * float(board["supply_volts"]) / world.R  # at full duty
+        cal["friction"].append(int(round(h / (stall_n / 10000.0))))
     return cal
 
 

@@ -688,3 +688,29 @@ def case_calibrations_the_board_refuses(path):
         whys.append(st["calibration_error"])
     assert "falls" in whys[0] and "pico" in whys[1], whys
     return {"why": whys}
+
+
+def case_stroke_limits_from_end_stops(path):
+    """The soft limits in force: the parameters, kept stop_margin_um inside the end stops the
+    calibration measured (its stroke section); a negative margin (calibration sweeps) lets the
+    parameters alone decide; without end stops the parameters alone decide."""
+    data = load(path)
+    app, _ = make_app(data)
+    out = {"none": app.status()["stroke_um"], "stops_none": app.status()["end_stops_um"]}
+    for name, stops in (("low_shifted", [-2000, 58000]), ("high_shifted", [1000, 61000])):
+        cal = Cal(data["cal"])
+        cal.stroke = array("i", stops)
+        app.set_calibration(cal)
+        st = app.status()
+        assert st["calibration_error"] is None and st["end_stops_um"] == stops, st
+        out[name] = st["stroke_um"]
+    app.set_param("stroke_min_um", 2000)  # a parameter inside the stops wins
+    out["param_inside"] = app.status()["stroke_um"]
+    app.set_param("stop_margin_um", -65535)  # a sweep opens them to the parameters
+    out["margin_open"] = app.status()["stroke_um"]
+    app.set_param("stroke_min_um", -65535)
+    app.set_param("stroke_max_um", 65535)
+    out["all_open"] = app.status()["stroke_um"]
+    app.set_calibration(Cal(data["cal"]))  # a calibration without end stops forgets them
+    out["forgotten"] = app.status()["end_stops_um"]
+    return out

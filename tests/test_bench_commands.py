@@ -133,5 +133,5 @@ def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys)
         assert capsys.readouterr().out.strip() == "no latched faults"
         assert cli.main(["status", "--port", port]) == 0
         text = capsys.readouterr().out
-        assert "longest step (us)" in text and "overruns" in text and "soft stroke limits (um)" in text
+        assert "longest step (us)" in text and "overruns" in text and "soft stroke limits on D2 (um)" in text
         assert "latched faults                 none" in text, text

@@ -207,3 +207,14 @@ def test_board_main_puts_back_a_calibration_an_interrupted_install_left_aside(tm
 def test_a_falling_pot_curve_and_another_boards_calibration_are_refused(data_path):
     here, there = both("case_calibrations_the_board_refuses(PATH)", data_path)
     assert here == there
+
+
+def test_the_soft_limits_stay_off_the_calibrated_end_stops(data_path):
+    here, there = both("case_stroke_limits_from_end_stops(PATH)", data_path)
+    assert here == there
+    assert here["none"] == [500, 59500] and here["stops_none"] is None
+    assert here["low_shifted"] == [500, 57700]  # 300 um (stop_margin_um) inside the high stop
+    assert here["high_shifted"] == [1300, 59500]
+    assert here["param_inside"] == [2000, 59500]
+    assert here["margin_open"] == [2000, 59500]
+    assert here["all_open"] == [1000 - 65535, 65535] and here["forgotten"] is None  # no limit inside the stroke

@@ -140,3 +140,27 @@ def test_soft_stroke_limits_stop_short_of_the_end_stops_and_targets_inside_them_
 def test_run_in_real_time_on_sim_returns_with_motor_off():
     here = sim_cases.case_run_realtime_sim()
     assert here == on_micropython("case_run_realtime_sim()")
+
+
+STICKY_TARGETS = [30000, 30500, 30300, 31000, 29700, 45000, 44950, 10000]
+
+
+@pytest.mark.parametrize("feed_forward", [True, False])
+def test_position_on_a_sticky_block_parks_without_a_limit_cycle(tmp_path, feed_forward):
+    """1.1 N of block friction (3.7x boards/sim.json's). With the friction's feed-forward duty the
+    block reaches every target within the deadband's hysteresis (3 x 15 um) plus the calibration's
+    error, settles in under 1.5 s, and then does not move at all (a limit cycle would); without
+    it (an older calibration: friction alone) the PI leaves the block stuck short for seconds."""
+    board = fake_hardware.sim_board()
+    board["actuator"]["block"]["coulomb_n"] = 1.1
+    board_path = tmp_path / "sticky.json"
+    board_path.write_text(json.dumps(board))
+    path = tmp_path / "cal.json"
+    path.write_text(json.dumps({"cal": fake_hardware.model_calibration(board, feed_forward=feed_forward)}))
+    call = "case_position_sticky_sim(%r, %r, %r)" % (str(path), str(board_path), STICKY_TARGETS)
+    here = eval("sim_cases." + call)
+    if feed_forward:
+        assert here == on_micropython(call)
+        assert here["moved_um"] <= 1 and here["true_err_um"] <= 60 and here["settle_ticks"] <= 1500, here
+    else:
+        assert here["true_err_um"] > 60 and here["settle_ticks"] > 1500, here

@@ -249,8 +249,7 @@ def case_stroke_limits_sim(path, duty=10000, ticks=1500):
     app.set_calibration(Cal(data["cal"]))
     app.start()
     world = sim.world()
-    lo = app.get_param("stroke_min_um")
-    hi = app.get_param("stroke_max_um")
+    lo, hi = app.ctrl.stroke_limits
     zone = app.get_param("slow_zone_um")
     sim.run_ticks(10)
     out = {}
@@ -268,7 +267,7 @@ def case_stroke_limits_sim(path, duty=10000, ticks=1500):
             nut = world.nut_mm if sign > 0 else -world.nut_mm
             if max(pos, nut) > extreme:
                 extreme = max(pos, nut)
-            room = hi - max(m.d1, m.d2) if sign > 0 else min(m.d1, m.d2) - lo
+            room = hi - m.d2 if sign > 0 else m.d2 - lo
             if room > zone and abs(app.ctrl.duty) > far_duty:
                 far_duty = abs(app.ctrl.duty)
             if room < zone // 4:
@@ -339,3 +338,53 @@ def case_run_realtime_sim():
     assert sim.motor_voltage() == 0 and st["mode"] == "idle", st
     assert app.ctrl.steps >= 100, app.ctrl.steps  # 300 ms at 1 kHz, allowing for a slow host
     return {"ok": True}
+
+
+def case_position_sticky_sim(path, board_path, targets, settle_ticks=2500, hold_ticks=1000):
+    """Position mode on a sticky actuator (the board file's block friction): for each target,
+    after `settle_ticks`, the block's true position (pot 2's wiper travel, what pot 2 was
+    calibrated against) over `hold_ticks`: its error and how far it moved (a limit cycle moves
+    it), and the first tick from which it stayed within 50 um of the target (settle time)."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    data = load(path)
+    app = App(board_path, None)
+    app.set_calibration(Cal(data["cal"]))
+    app.start()
+    world = sim.world()
+    pot2 = world.pots[1]
+    sim.run_ticks(10)
+    app.set_mode("position")
+    out = {"true_err_um": 0, "moved_um": 0, "settle_ticks": 0}
+    for target in targets:
+        app.set_target(target)
+        lo = hi = None
+        inside_since = None
+        k = 0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            x = world.block_mm
+            travel = int((x + pot2.mount_error_mm(x)) * 1000.0)
+            if abs(travel - target) <= 50:
+                inside_since = k if inside_since is None else inside_since
+            else:
+                inside_since = None
+            if k >= settle_ticks:
+                lo = travel if lo is None or travel < lo else lo
+                hi = travel if hi is None or travel > hi else hi
+                e = abs(travel - target)
+                if e > out["true_err_um"]:
+                    out["true_err_um"] = e
+            k += 1
+        if hi - lo > out["moved_um"]:
+            out["moved_um"] = hi - lo
+        settled = settle_ticks + hold_ticks if inside_since is None else inside_since
+        if settled > out["settle_ticks"]:
+            out["settle_ticks"] = settled
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "position", st
+    return out

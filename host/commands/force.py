@@ -24,8 +24,9 @@ def add_parser(subparsers):
 def _stroke_end(board, d2_um):
     """'0 mm' or '60 mm' when D2 is inside the soft stroke limit's slow zone at that end, else None."""
     try:
-        lo, hi, zone = (board.call("get", name) for name in ("stroke_min_um", "stroke_max_um", "slow_zone_um"))
-    except BoardError:  # a firmware without soft stroke limits
+        lo, hi = board.call("status")["stroke_um"]  # the limits in force (kept off the end stops)
+        zone = board.call("get", "slow_zone_um")
+    except (BoardError, KeyError, TypeError, ValueError):  # a firmware without soft stroke limits
         return None
     if d2_um <= lo + zone:
         return "0 mm"

@@ -26,6 +26,11 @@ def run(args):
         progress_line("%6.2f s  D2 %8.3f mm  (target %.3f mm)" % (seconds, value / 1000, args.to), every=1.0)
 
     with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
+        lo, hi = board.call("status").get("stroke_um") or (-65535, 65535)
+        if not lo <= target <= hi:
+            raise UserError("--to %.3f mm is outside the soft stroke limits in force, %.3f..%.3f mm (the "
+                            "stroke_min_um/stroke_max_um parameters, kept stop_margin_um inside the calibrated end "
+                            "stops; host status shows both)" % (args.to, lo / 1000, hi / 1000))
         try:
             ok, value, seconds = settle(board, "position", target, "d2_um", int(args.tolerance * 1000), args.timeout, progress=progress)
         finally:

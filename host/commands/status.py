@@ -16,7 +16,8 @@ LABELS = (
     ("last_fault", "last fault"),
     ("target", "target"),
     ("duty", "duty (of 10000)"),
-    ("stroke_um", "soft stroke limits (um)"),
+    ("stroke_um", "soft stroke limits on D2 (um)"),
+    ("end_stops_um", "block's end stops in D2 (um)"),
     ("params_changed", "parameters changed since boot"),
     ("params_saved", "saved parameters (boot values)"),
     ("params_file_error", "saved parameters problem"),
@@ -57,7 +58,7 @@ def describe(status):
             value = ", ".join(value) if value else "none"
             if status.get("faults"):
                 value += "  (host reset clears them)"
-        elif key == "stroke_um" and value:
+        elif key in ("stroke_um", "end_stops_um") and value:
             value = "%s .. %s" % tuple(value)
         elif key == "params_changed":
             value = ", ".join(value) if value else "none"
