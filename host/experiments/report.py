@@ -167,14 +167,21 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("## Fig. 7: displacement control, error measured by the reference sensor on pot 2")
     add("")
-    add("| target mm | before: reference mm | before: error mm | after: reference mm | after: error mm |")
-    add("| --- | --- | --- | --- | --- |")
+    add("| target mm | before: reference mm | before: error mm | after: reference mm | after: error mm | after: settle time s |")
+    add("| --- | --- | --- | --- | --- | --- |")
     for b, a in zip(r["fig7"]["before"], r["fig7"]["after"]):
-        add("| %g | %s | %s%s | %s | %s%s |" % (b["target"], _f(b["reference"]), _f(b["error"]), "" if b["settled"] else " (not settled)",
-                                             _f(a["reference"]), _f(a["error"]), "" if a["settled"] else " (not settled)"))
+        add("| %g | %s | %s%s | %s | %s%s | %s |" % (b["target"], _f(b["reference"]), _f(b["error"]), "" if b["settled"] else " (not settled)",
+                                                  _f(a["reference"]), _f(a["error"]), "" if a["settled"] else " (not settled)",
+                                                  _f(a.get("settle_s"), 2)))
     add("")
+    zero = r["fig7"].get("reference_zero")
     add("Max |error| over 1-59 mm: %s mm before, %s mm after. Paper: 14.4 -> 4.2 mm. The reference sensor measures "
-        "pot 2's wiper travel (as on the paper's rig), so pot 2's mounting error is not in these errors." % (_f(before), _f(after)))
+        "pot 2's wiper travel (as on the paper's rig), so pot 2's mounting error is not in these errors. Positions are "
+        "measured from the block's end stops, whose middle is 30 mm, by the calibration and by this experiment alike%s. "
+        "Settled: the 0.1 s mean of the firmware's D2 within 0.05 mm of the target for 0.2 s; the settle time runs from "
+        "the command (the block starts at the previous target) until then." % (
+            _f(before), _f(after), "" if not zero else " (the reference read %s and %s mm at the stops here)" % (
+                _f(zero["low"]), _f(zero["high"]))))
     add("")
     add("![Fig. 7](fig7.png)")
     add("")
