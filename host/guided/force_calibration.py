@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from firmware.calibration import FF_DUTY_MAX
 from host.calibration_file import friction_section, poly_section
 from host.errors import UserError
 from host.guided import acquire
@@ -34,6 +35,8 @@ from host.guided.prompts import end_progress, progress_line
 D_RANGE_MM = (-2.0, 2.0)  # the cavity: |d| never exceeds 2 mm
 F_RANGE_N = (-25.0, 25.0)
 MAX_ORDER = 5
+STEP_SPAN_DUTY = 5000  # --levels N: loading steps of 5000 / N duty (about 17 N in N steps on boards/sim.json)
+CAVITY_NEAR_MM = 1.8  # |d| beyond this: the nut is near the cavity wall, F0(d) turns vertical
 TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about the spring
 SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
@@ -49,7 +52,7 @@ def slack_position_mm(anchor_mm, side, gap_mm=1.5):
 
 
 def _move_slack(client, start):
-    ok, _ = acquire.hold(client, "position", int(start * 1000), "d2_um", 300, timeout_s=10)
+    ok, _, _ = acquire.hold(client, "position", int(start * 1000), "d2_um", 300, timeout_s=10)
     client.call("stop")
     if not ok:
         status = client.call("status")
@@ -75,7 +78,7 @@ class GaugeOnSide:
             rig.no_load()
         prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % self.start)
         _move_slack(self.client, self.start)
-        rig.hook_gauge(anchor_mm, side)
+        rig.hook_gauge(anchor_mm, side, gap_mm=gap_mm)
         self.tare_t, self.tares, self.read_t, self.readings = [], [], [], []
 
     def read(self, records=None, reads=1):
@@ -121,7 +124,7 @@ def _ramp_duty(client, start, end):
 
 
 def force_points(session, rig, prompter, opts, side="high"):
-    """(d_mm, force_N, s, loading, tares) from `opts.rounds` loading/unloading rounds against a
+    """(d_mm, force_N, s, loading, tares, duty) from `opts.rounds` loading/unloading rounds against a
     gauge on `side`, tared before the first round and after every round (GaugeOnSide).
     force_N is the actuator's force (negative toward 0 mm); s is the friction direction of
     each point (+1 after the force fell, -1 after it rose)."""
@@ -130,12 +133,19 @@ def force_points(session, rig, prompter, opts, side="high"):
     gauge = GaugeOnSide(session, rig, prompter, opts.anchor_mm, side)
     prompter.say("  taring the gauge (fibre slack)")
     gauge.tare()
-    levels = np.linspace(0, opts.max_duty, opts.levels + 1)[1:]
-    d, loading = [], []
+    # The duty a force needs depends on the motor, the supply and the screw, so the first
+    # round's loading goes up in equal steps until the gauge reads opts.force_range (or the duty
+    # reaches opts.max_duty, or the spring nears the cavity wall); every round then uses those
+    # levels. The fit is only trusted over the forces it saw: a weak motor's 5000 duty reached
+    # 7.5 N, and a linear F0 carried out to 15 N missed by 20 %.
+    step = STEP_SPAN_DUTY / opts.levels
+    levels = []
+    d, loading, duties = [], [], []
     for r in range(opts.rounds):
         client.call("mode", "open_loop")
         previous = 0.0
-        for load, seq in ((True, levels), (False, levels[::-1][1:])):
+        for load in (True, False):
+            seq = levels[::-1][1:] if not load else (levels or _levels_until(step, opts.max_duty))
             for duty in seq:
                 _ramp_duty(client, sign * previous, sign * duty)
                 previous = duty
@@ -144,8 +154,13 @@ def force_points(session, rig, prompter, opts, side="high"):
                 d.append(acquire.mean(rec, "defl_um") / 1000.0)
                 g = gauge.record(rec)
                 loading.append(load)
+                duties.append(sign * duty)
                 progress_line("  %s side, round %d/%d %s duty %+5d: d %+.3f mm, gauge %.2f N" % (
                     side, r + 1, opts.rounds, "loading  " if load else "unloading", sign * duty, d[-1], g))
+                if load and r == 0:
+                    levels.append(duty)
+                    if abs(g - gauge.tares[-1]) >= opts.force_range or abs(d[-1]) >= CAVITY_NEAR_MM:
+                        break
         gauge.tare(move=True)
     end_progress()
     client.call("stop")
@@ -153,7 +168,40 @@ def force_points(session, rig, prompter, opts, side="high"):
     # Loading against the high-side gauge makes the force fall (more negative): the block slides
     # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
     s = np.where(loading, 1.0, -1.0) * -SIDES[side]
-    return np.array(d), gauge.forces(), s, loading, gauge.tares
+    return np.array(d), gauge.forces(), s, loading, gauge.tares, np.array(duties, dtype=float)
+
+
+def _levels_until(step, cap):
+    """Loading duties step, 2 step, ... up to cap: the first round stops early at the force range."""
+    n = max(1, int(cap // step))
+    return [step * (i + 1) for i in range(n)]
+
+
+@dataclass
+class Drive:
+    n_per_duty: float  # force the stalled motor holds per duty count, N
+    offset_n: float  # force at zero duty by the straight line (negative: the screw's own friction)
+    ff_duty: int  # the duty that holds the spring at the block's friction force (0: none)
+    why: str = ""
+
+
+def fit_drive(duty, spring_n, friction_n):
+    """The stalled motor's force per duty, from the force step's points (at each one the motor
+    holds the spring still, so its force is the spring's), and the duty that holds the spring at
+    the friction force: (h - offset) / slope."""
+    duty = np.abs(np.asarray(duty, dtype=float))
+    force = np.abs(np.asarray(spring_n, dtype=float))
+    if len(duty) < 3 or np.ptp(duty) <= 0:
+        return Drive(0.0, 0.0, 0, "too few duty levels")
+    slope, offset = np.polyfit(duty, force, 1)
+    if not slope > 0:
+        return Drive(float(slope), float(offset), 0, "the force did not grow with the duty")
+    if friction_n <= 0:
+        return Drive(float(slope), float(offset), 0, "no friction identified")
+    ff = int(round((friction_n - min(offset, 0.0)) / slope))
+    if not 0 < ff <= FF_DUTY_MAX:
+        return Drive(float(slope), float(offset), 0, "%d duty is outside 1..%d" % (ff, FF_DUTY_MAX))
+    return Drive(float(slope), float(offset), ff)
 
 
 @dataclass
@@ -244,11 +292,13 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     rig.no_load()
     d, f, s, loading = (np.concatenate([p[i] for p in parts]) for i in range(4))
     tares = [t for p in parts for t in p[4]]
+    duty = np.concatenate([p[5] for p in parts])
     taut = np.abs(f) > TAUT_N
     if np.count_nonzero(taut) < 6:
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
     fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
+    drive = fit_drive(duty[taut], ft - fit.friction_n * st, fit.friction_n)
     plain = fit_force(dt, ft, st, fit.order_f, friction=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
                hysteresis_n(dt[ft > 0], ft[ft > 0], lt[ft > 0], fit.order_f) if np.any(ft > 0) else 0.0)
@@ -263,6 +313,10 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (_poly_text(fit.coeffs_d, "F"), 1000 * fit.rms_d_mm),
         "force: loading/unloading hysteresis %.3f N (largest gap between the two fits)" % hyst,
         "force: cross-validated rms by order: " + ", ".join("%d: %.3f N" % kv for kv in fit.scores.items()),
+        "force: the motor holds %.2f N per 1000 duty at stall (%+.2f N at zero duty): %d duty holds the spring at the "
+        "friction force (position control adds it to break the block free)" % (
+            1000 * drive.n_per_duty, drive.offset_n, drive.ff_duty) if drive.ff_duty else
+        "force: no friction feed-forward for position control (%s)" % drive.why,
     ]
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
@@ -271,7 +325,9 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
         "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
         # always written, so that a --no-friction run also replaces an older friction section
-        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt))}),
+        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt)),
+                                                      "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
+                                     ff_duty=drive.ff_duty),
     }
     png = opts.out_dir / "calibration-force.png"
     plot_force(png, d, f, s, fit)
