@@ -16,7 +16,9 @@ one line, the CRC over that string) are still read. The payload repeats "schema"
 is also covered by the CRC. Payload keys: "schema", "board", "date", "pots" (identity of
 pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl", "fixed": [ints],
 ...float coefficients, units and fit statistics for people}), and the optional "df", "force",
-"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null), and the optional
+"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null; the two force
+sections may also be {"kind": "pwl", ...} tables whose inputs are offset by FORCE_PWL_OFFSET, for
+a spring whose stiffness changes at a point, see firmware/measurement.py), and the optional
 "friction" ({"kind": "friction", "fixed": [h_mN] or [h_mN, ff_duty], ...}: the output block's
 Coulomb friction, see firmware/measurement.py, and the duty that makes the motor hold the spring
 at that force, which position control adds to break the block free, see firmware/controller.py), and the optional "stroke" ({"kind": "stroke", "fixed": [low_um,
@@ -39,13 +41,14 @@ import binascii
 from firmware.bcm_fixed import invalid as bcm3_invalid
 from firmware.bcm_fixed import bcm3
 from firmware.poly_fixed import invalid as poly_invalid
-from firmware.pwl_fixed import pwl
+from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 
 FORMAT = "lsea-kit calibration"
 SCHEMA = 2  # what the host writes; schema 1 is read too
 PAYLOAD_KEY = '\n"payload": '  # schema 2: the payload object starts after this
 POT_SECTIONS = ("pot1", "pot2")
 POLY_SECTIONS = ("df", "force", "force_inverse")
+TABLE_FORCE_SECTIONS = ("force", "force_inverse")  # may be pwl tables instead of polynomials
 FRICTION_SECTION = "friction"
 STROKE_SECTION = "stroke"
 STROKE_MAX_UM = 65535  # measurement.STROKE_CLAMP_UM: positions beyond it are clamped anyway
@@ -172,14 +175,26 @@ def pot_constants(section, name):
 
 
 def poly_constants(section, name):
-    """array('i') of a polynomial section, checked; None when the section is absent."""
+    """array('i') of a polynomial section (or, for the force sections, of a pwl table), checked;
+    None when the section is absent."""
     if section is None:
         return None
-    if not isinstance(section, dict) or section.get("kind", "poly") != "poly":
+    kind = section.get("kind", "poly") if isinstance(section, dict) else None
+    if kind == "pwl" and name in TABLE_FORCE_SECTIONS:
+        values = _int_list(section, name)
+        check_pwl(values, name)
+        _check(values[1] == 0, name, "a force table takes its input unshifted")
+        return array("i", values)
+    if kind != "poly":
         raise CalibrationError("section %s: not a polynomial" % name)
     values = _int_list(section, name)
     check_poly(values, name)
     return array("i", values)
+
+
+def section_kind(section):
+    """'poly' or 'pwl' of a present polynomial-or-table section."""
+    return section.get("kind", "poly") if isinstance(section, dict) else "poly"
 
 
 def friction_constants(section, name=FRICTION_SECTION):
@@ -209,8 +224,9 @@ def stroke_constants(section, name=STROKE_SECTION):
 
 
 class Calibration:
-    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None,
-    friction as [h_mN] or None, stroke as [low_um, high_um] or None."""
+    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None
+    (force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
+    as [low_um, high_um] or None."""
 
     def __init__(self, body, crc):
         for name in POT_SECTIONS:
@@ -221,6 +237,8 @@ class Calibration:
         self.df = poly_constants(body.get("df"), "df")
         self.force = poly_constants(body.get("force"), "force")
         self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
+        self.force_kind = section_kind(body.get("force"))
+        self.force_inverse_kind = section_kind(body.get("force_inverse"))
         self.friction = friction_constants(body.get(FRICTION_SECTION))
         self.stroke = stroke_constants(body.get(STROKE_SECTION))
         self.crc = crc

@@ -37,7 +37,7 @@ from firmware.calibration import (
     stroke_constants,
 )
 from host.errors import UserError
-from host.fixed_export import export_poly, export_pot
+from host.fixed_export import export_force_table, export_poly, export_pot
 
 SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION)
 INFO_KEYS = ("board", "date", "pots")
@@ -214,6 +214,25 @@ def poly_section(coeffs_high_first, x_range, in_scale, out_scale, units, stats=N
         "x_range": [float(x_range[0]), float(x_range[1])],
         "in_scale": float(in_scale),
         "out_scale": float(out_scale),
+        "units": list(units),
+        "fit": stats or {},
+        "fixed": list(fixed),
+        "fixed_check": fixed.report(),
+    }
+
+
+def force_table_section(knots_in, knots_out, in_range, units, stats=None):
+    """A force section as a table (F0(d) or d(F0)): knots in natural units (mm, N), `units` as
+    for poly_section."""
+    try:
+        fixed = export_force_table(knots_in, knots_out, in_range)
+    except ValueError as e:
+        raise UserError("cannot export the force table for the firmware: %s" % e) from None
+    return {
+        "kind": "pwl",
+        "knots_in": [float(v) for v in knots_in],
+        "knots_out": [float(v) for v in knots_out],
+        "in_range": [float(in_range[0]), float(in_range[1])],
         "units": list(units),
         "fit": stats or {},
         "fixed": list(fixed),

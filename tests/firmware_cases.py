@@ -35,6 +35,8 @@ class Cal:
         self.force = array("i", d["force"]) if d.get("force") else None
         self.force_inverse = array("i", d["force_inverse"]) if d.get("force_inverse") else None
         self.friction = array("i", d["friction"]) if d.get("friction") else None
+        self.force_kind = d.get("force_kind", "poly")
+        self.force_inverse_kind = d.get("force_kind", "poly")
         self.crc = 12345
         self.board = "sim"
         self.version = 1

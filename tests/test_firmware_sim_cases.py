@@ -144,14 +144,14 @@ def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
     return est // hold_ticks, int(true / hold_ticks)
 
 
-def _hooked_on_side(path, side, anchor, gap_um):
+def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
     """A started app with the file's calibration, the block moved `gap_um` to the slack side of
     the anchor, the gauge hooked on `side`: (app, world, sign of the forces against it)."""
     from firmware.app import App
 
     import boards.sim.machine as sim
 
-    app = App("boards/sim.json", None)
+    app = App(board_path, None)
     app.set_calibration(Cal(load(path)["cal"]))
     app.start()
     world = sim.world()
@@ -163,10 +163,10 @@ def _hooked_on_side(path, side, anchor, gap_um):
     return app, world, sign
 
 
-def case_force_points_sim(path, side, levels, anchor=45000):
+def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/sim.json"):
     """Force identification as the guided step does it, on the simulated actuator: open-loop duty
     steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
-    app, world, sign = _hooked_on_side(path, side, anchor, 1500)
+    app, world, sign = _hooked_on_side(path, side, anchor, 1500, board_path)
     app.set_mode("open_loop")
     rows = []
     seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
@@ -190,10 +190,11 @@ def case_force_points_sim(path, side, levels, anchor=45000):
     return rows
 
 
-def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500):
+def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500,
+                         board_path="boards/sim.json"):
     """Force steps against a gauge on `side`, the fibre just slack, then taken up by a `preload` mN
     hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each."""
-    app, world, sign = _hooked_on_side(path, side, anchor, 200)
+    app, world, sign = _hooked_on_side(path, side, anchor, 200, board_path)
     app.set_mode("force")
     if preload:
         app.set_target(sign * preload)

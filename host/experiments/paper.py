@@ -161,7 +161,10 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     fd = accepted["force"].data
     results["force_fit"] = {"coeffs_f": list(fd["coeffs_f"]), "coeffs_d": list(fd["coeffs_d"]),
                             "hysteresis_n": fd["hysteresis_n"], "friction_n": fd["friction_n"],
-                            "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"])}
+                            "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"]),
+                            "kind": fd.get("kind", "poly"),
+                            "knots_d": None if fd.get("knots_d") is None else list(fd["knots_d"]),
+                            "knots_f": None if fd.get("knots_f") is None else list(fd["knots_f"])}
     results["method"] = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
                          "friction": opts.friction, "budget": opts.budget, "rounds": opts.rounds,
                          "force_order_chosen": int(fd["order"])}

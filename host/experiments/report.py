@@ -142,10 +142,18 @@ def write(out_dir, r, opts, command=None):
     for name in r["calibration_plots"]:
         add("![%s](%s)" % (name, name))
     add("")
-    add("Force fit: F0(d) = %s (N, d in mm); d(F0) = %s (mm, F0 in N); block friction %s N; loading/unloading "
-        "hysteresis %s N. Paper (reconstructed): F0 ~ 0.65 d^2 + 12.37 d + 2.08, d ~ 0.00091 F0^2 + 0.070 F0 - 0.18." % (
-            _poly(r["force_fit"]["coeffs_f"], "d"), _poly(r["force_fit"]["coeffs_d"], "F0"),
-            _f(r["force_fit"].get("friction_n")), _f(r["force_fit"]["hysteresis_n"])))
+    ff = r["force_fit"]
+    if ff.get("kind") == "pwl":
+        model = ("a %d-knot table through (d mm, F0 N) %s, its inverse d(F0) the same knots (the spring's stiffness "
+                 "changes where a preloaded spring lifts off: a polynomial's cross-validated error was over %.0f %% "
+                 "higher; the best polynomial: F0 = %s)" % (
+                     len(ff["knots_d"]), ", ".join("(%.3f, %.2f)" % kv for kv in zip(ff["knots_d"], ff["knots_f"])),
+                     100 * (1 / 0.8 - 1), _poly(ff["coeffs_f"], "d")))
+    else:
+        model = "%s (N, d in mm); d(F0) = %s (mm, F0 in N)" % (_poly(ff["coeffs_f"], "d"), _poly(ff["coeffs_d"], "F0"))
+    add("Force fit: F0(d) = %s; block friction %s N; loading/unloading hysteresis %s N. Paper (reconstructed): "
+        "F0 ~ 0.65 d^2 + 12.37 d + 2.08, d ~ 0.00091 F0^2 + 0.070 F0 - 0.18." % (
+            model, _f(ff.get("friction_n")), _f(ff["hysteresis_n"])))
     add("")
 
     add("## Fig. 3a: objective vs order (pot 2 sweep of this run)")

@@ -26,7 +26,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from firmware.calibration import FF_DUTY_MAX
-from host.calibration_file import friction_section, poly_section
+from host.calibration_file import force_table_section, friction_section, poly_section
+from host.piecewise_linear import fit_pwl, hat_weights
 from host.errors import UserError
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
@@ -206,7 +207,7 @@ def fit_drive(duty, spring_n, friction_n):
 
 @dataclass
 class ForceFit:
-    coeffs_f: np.ndarray  # F0(d), N of mm, numpy.polyval order
+    coeffs_f: np.ndarray  # F0(d), N of mm, numpy.polyval order (the polynomial fit, also when a table is used)
     coeffs_d: np.ndarray  # d(F0), mm of N (of the spring force)
     friction_n: float  # h; 0 when fitted without friction
     rms_n: float  # of F_gauge - (F0(d) + h s)
@@ -215,6 +216,20 @@ class ForceFit:
     order_f: int
     order_d: int
     scores: dict = field(default_factory=dict)  # order -> cross-validated rms (N)
+    kind: str = "poly"  # or "pwl": F0 is the table (knots_d, knots_f), d(F0) its exact inverse
+    knots_d: np.ndarray = None
+    knots_f: np.ndarray = None
+    table_scores: dict = field(default_factory=dict)  # knots -> cross-validated rms (N)
+
+    def f0(self, d):
+        """F0 at deformations d (mm), N; a table goes on straight past its end knots, as its export does."""
+        d = np.asarray(d, dtype=float)
+        if self.kind != "pwl":
+            return np.polyval(self.coeffs_f, d)
+        kx, ky = self.knots_d, self.knots_f
+        lo = ky[0] + (d - kx[0]) * (ky[1] - ky[0]) / (kx[1] - kx[0])
+        hi = ky[-1] + (d - kx[-1]) * (ky[-1] - ky[-2]) / (kx[-1] - kx[-2])
+        return np.where(d < kx[0], lo, np.where(d > kx[-1], hi, np.interp(d, kx, ky)))
 
 
 def _design(d, s, order, friction):
@@ -238,7 +253,38 @@ def cv_rms(d, f, s, order, friction, folds=5):
     return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
 
 
-def fit_force(d_mm, force_n, s, order="auto", friction=True):
+def _hat(d, kx):
+    j, w = hat_weights(d, kx)
+    a = np.zeros((len(d), len(kx)))
+    a[np.arange(len(d)), j] = 1.0 - w
+    a[np.arange(len(d)), j + 1] = w
+    return a
+
+
+def _solve_table(d, f, s, kx, friction):
+    a = _hat(d, kx)
+    sol = np.linalg.lstsq(np.column_stack([a, s]) if friction else a, f, rcond=None)[0]
+    return (sol[:-1], float(sol[-1])) if friction else (sol, 0.0)
+
+
+def table_knots(d, spring, k):
+    """Knot positions of a k-knot free-knot piecewise-linear F0 (host.piecewise_linear)."""
+    order = np.argsort(d, kind="stable")
+    return np.asarray(fit_pwl(d[order], spring[order], k).coefficients["knots_x"])
+
+
+def cv_rms_table(d, f, s, kx, friction, folds=5):
+    """Root mean square hold-out error of a table F0 on the knots kx (interleaved folds)."""
+    idx = np.arange(len(d))
+    err = []
+    for k in range(folds):
+        test = idx % folds == k
+        v, h = _solve_table(d[~test], f[~test], s[~test], kx, friction)
+        err.append(f[test] - np.interp(d[test], kx, v) - h * s[test])
+    return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
+
+
+def fit_force(d_mm, force_n, s, order="auto", friction=True, tables=True):
     """F_gauge = F0(d) + h s and d(F0 = F_gauge - h s) by least squares: a ForceFit."""
     d = np.asarray(d_mm, dtype=float)
     f = np.asarray(force_n, dtype=float)
@@ -258,8 +304,47 @@ def fit_force(d_mm, force_n, s, order="auto", friction=True):
     cd = np.polyfit(spring, d, order)
     resid = f - np.polyval(cf, d) - h * s
     rd = d - np.polyval(cd, spring)
-    return ForceFit(cf, cd, h, float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid))),
-                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
+    fit = ForceFit(cf, cd, h, float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid))),
+                   float(np.sqrt(np.mean(rd**2))), order, order, scores)
+    if tables and order == int(order) and len(d) >= 12:
+        _try_table(fit, d, f, s, friction, min(scores.values()))
+    return fit
+
+
+TABLE_KNOTS = range(3, 9)
+TABLE_GAIN = 0.8  # a table replaces the polynomial when its hold-out error is at most this fraction
+
+
+def _try_table(fit, d, f, s, friction, poly_cv):
+    """Replace the polynomial F0 by a free-knot table when cross-validation says it predicts
+    clearly better: a spring pair whose preload ends inside the force range halves its
+    stiffness at one deformation, a kink no polynomial of order <= 5 follows (rms 0.2-0.3 N
+    where the table leaves the gauge's noise). The table must rise, so its inverse is a table too."""
+    spring0 = f - fit.friction_n * s
+    tables = {}
+    for k in TABLE_KNOTS:
+        if len(d) < 3 * k:
+            break
+        kx = table_knots(d, spring0, k)
+        values, h = _solve_table(d, f, s, kx, friction)
+        if h < 0:
+            values, h = _solve_table(d, f, s, kx, False)
+        if np.all(np.diff(values) > 0):  # a knot span without data can fold the table: not a spring
+            tables[k] = (kx, values, h)
+    fit.table_scores = {k: cv_rms_table(d, f, s, t[0], friction) for k, t in tables.items()}
+    if not fit.table_scores:
+        return
+    best = min(fit.table_scores.values())
+    k = min(n for n, v in fit.table_scores.items() if v <= 1.05 * best)
+    if best > TABLE_GAIN * poly_cv:
+        return
+    kx, values, h = tables[k]
+    resid = f - np.interp(d, kx, values) - h * s
+    spring = f - h * s
+    rd = d - np.interp(spring, values, kx)
+    fit.kind, fit.knots_d, fit.knots_f, fit.friction_n = "pwl", kx, values, h
+    fit.rms_n, fit.max_n = float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid)))
+    fit.rms_d_mm = float(np.sqrt(np.mean(rd**2)))
 
 
 def hysteresis_n(d, f, loading, order):
@@ -299,18 +384,22 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
     fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
     drive = fit_drive(duty[taut], ft - fit.friction_n * st, fit.friction_n)
-    plain = fit_force(dt, ft, st, fit.order_f, friction=False)  # what the paper's fit leaves
+    plain = fit_force(dt, ft, st, fit.order_f, friction=False, tables=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
                hysteresis_n(dt[ft > 0], ft[ft > 0], lt[ft > 0], fit.order_f) if np.any(ft > 0) else 0.0)
     lines = [
         "force: %d points (%d taut), gauge %s, tares %s N (interpolated in time: the zero drifts), d %.3f..%.3f mm, "
         "F0 %.2f..%.2f N" % (len(d), len(dt), " and ".join(sides), ", ".join("%.2f" % t for t in tares), dt.min(), dt.max(),
                              ft.min(), ft.max()),
-        "force: F0(d) = %s  (N, mm)" % _poly_text(fit.coeffs_f, "d"),
+        "force: F0(d) = %s  (N, mm)" % _poly_text(fit.coeffs_f, "d") if fit.kind == "poly" else
+        "force: F0(d) is a %d-knot table (cross-validated rms %.3f N against %.3f N for the best polynomial): "
+        "d %s mm -> F0 %s N" % (len(fit.knots_d), min(fit.table_scores.values()), min(fit.scores.values()),
+                              ", ".join("%.3f" % v for v in fit.knots_d), ", ".join("%.2f" % v for v in fit.knots_f)),
         "force: block friction h = %.3f N; fit rms %.3f N, max %.3f N (without the friction term: rms %.3f N)" % (
             fit.friction_n, fit.rms_n, fit.max_n, plain.rms_n) if opts.friction else
         "force: no friction term (--no-friction); fit rms %.3f N, max %.3f N" % (fit.rms_n, fit.max_n),
-        "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (_poly_text(fit.coeffs_d, "F"), 1000 * fit.rms_d_mm),
+        "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (
+            _poly_text(fit.coeffs_d, "F") if fit.kind == "poly" else "the table's inverse", 1000 * fit.rms_d_mm),
         "force: loading/unloading hysteresis %.3f N (largest gap between the two fits)" % hyst,
         "force: cross-validated rms by order: " + ", ".join("%d: %.3f N" % kv for kv in fit.scores.items()),
         "force: the motor holds %.2f N per 1000 duty at stall (%+.2f N at zero duty): %d duty holds the spring at the "
@@ -322,8 +411,10 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
     stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
     sections = {
-        "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
-        "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
+        "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f) if fit.kind == "poly" else
+        force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"), stats_f),
+        "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d) if fit.kind == "poly" else
+        force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"), stats_d),
         # always written, so that a --no-friction run also replaces an older friction section
         "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt)),
                                                       "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
@@ -332,7 +423,8 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     png = opts.out_dir / "calibration-force.png"
     plot_force(png, d, f, s, fit)
     data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "order": fit.order_f,
-            "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d,
+            "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d, "kind": fit.kind,
+            "knots_d": fit.knots_d, "knots_f": fit.knots_f,
             "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,
             "sides": sides}
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)
@@ -349,8 +441,9 @@ def plot_force(path, d, f, s, fit):
     ax.plot(d[down], f[down], "v", color="tab:red", ms=4, label="force fell (block slid toward 0 mm)")
     ax.plot(d[~down], f[~down], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
     grid = np.linspace(np.min(d), np.max(d), 200)
-    spring = np.polyval(fit.coeffs_f, grid)
-    ax.plot(grid, spring, "k-", lw=1, label="F0(d), order %d (spring)" % fit.order_f)
+    spring = fit.f0(grid)
+    ax.plot(grid, spring, "k-", lw=1, label="F0(d), %s (spring)" % (
+        "order %d" % fit.order_f if fit.kind == "poly" else "%d-knot table" % len(fit.knots_d)))
     if fit.friction_n > 0:
         ax.fill_between(grid, spring - fit.friction_n, spring + fit.friction_n, color="0.8", alpha=0.6,
                         label="friction band +-%.2f N" % fit.friction_n)
@@ -358,7 +451,7 @@ def plot_force(path, d, f, s, fit):
     ax.set_title("Force identification (paper eqs. 8-9, with the block's friction)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    resid = f - np.polyval(fit.coeffs_f, d) - fit.friction_n * s
+    resid = f - fit.f0(d) - fit.friction_n * s
     ax2.plot(d, resid * 1000, ".", color="tab:green", ms=4)
     ax2.axhline(0, color="0.5", lw=0.6)
     ax2.set_xlabel("spring deformation d = D1* - D2 (mm)")
