@@ -6,6 +6,11 @@ our firmware, running another version, or lacks a needed calibration), checks `s
 line on timeout (the firmware answers a repeated line with its cached reply, so a retry never
 runs a command twice). Telemetry frames that arrive meanwhile are queued for `frames()`.
 `open_board(port)` also accepts `sim`: a virtual board started for the life of the client.
+
+Slow is not silent: on a busy computer a virtual board (or the host itself) can be starved for
+a second or two, so a request keeps resending for PATIENCE_S before it gives up, and the error
+then says whether anything at all came from the board meanwhile ("the board stopped answering")
+or it kept sending other data (overloaded, not dead).
 """
 
 import collections
@@ -21,6 +26,7 @@ from host.frames import FrameDecoder
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 NO_DATA_S = 3.0  # wall-clock seconds without a telemetry record: the board stopped streaming
+PATIENCE_S = 8.0  # wall-clock seconds a request resends before the board counts as not answering
 _T_COL = P.FIELDS.index("t_us")
 _T_WRAP = 1 << 30  # the firmware's t_us wraps here
 _T_JUMP_US = 10000000  # a step this long is a restart of the firmware's clock, not time
@@ -60,10 +66,13 @@ def expected_firmware_version():
 
 
 class BoardClient:
-    def __init__(self, port, timeout=0.5, retries=3, check=True, require_calibration=False, start_firmware=True):
+    def __init__(self, port, timeout=0.5, retries=None, check=True, require_calibration=False, start_firmware=True,
+                 patience=PATIENCE_S):
         self.port = port
         self.timeout = timeout
-        self.retries = retries
+        self.retries = retries  # None: resend every `timeout` until `patience` seconds have passed
+        self.patience = patience
+        self.received = 0  # bytes read from the board so far
         self.decoder = FrameDecoder()
         self.telemetry = collections.deque()
         self.hellos = 0
@@ -148,6 +157,7 @@ class BoardClient:
 
     def _read_frames(self):
         data = self.serial.read(max(1, self.serial.in_waiting))
+        self.received += len(data)
         frames = self.decoder.feed(data) if data else []
         for frame in frames:
             if frame.type == P.T_TELEMETRY:
@@ -158,12 +168,17 @@ class BoardClient:
 
     def request(self, name, *args, timeout=None, retries=None):
         """Send one command; return the result of its ok frame, raise BoardError on an error
-        frame and TimeoutError when no reply came after all retries."""
+        frame and TimeoutError when no reply came: after `retries` resends when given, else
+        after resending every `timeout` for the client's patience (see the module docstring)."""
         seq = self._next_seq()
         line = P.format_command(seq, name, *args)
         timeout = self.timeout if timeout is None else timeout
-        tries = (self.retries if retries is None else retries) + 1
-        for _ in range(tries):
+        retries = self.retries if retries is None else retries
+        start, heard = time.monotonic(), self.received
+        tries = 0
+        while retries is not None and tries <= retries or retries is None and (
+                tries == 0 or time.monotonic() - start < self.patience):
+            tries += 1
             self.serial.write(line)
             deadline = time.monotonic() + timeout
             while time.monotonic() < deadline:
@@ -174,7 +189,12 @@ class BoardClient:
                         raise BoardError("board refused %s: %s" % (name, frame.text()))
                     self._last_heartbeat = time.monotonic()
                     return frame.json()
-        raise TimeoutError("no reply to %s from %s" % (name, self.port))
+        waited = time.monotonic() - start
+        if self.received == heard:
+            raise TimeoutError("the board stopped answering: no reply to %s from %s in %.0f s, and nothing else came "
+                               "from it" % (name, self.port, waited))
+        raise TimeoutError("no reply to %s from %s in %.0f s, though it kept sending (%d bytes): the board or this "
+                           "computer is overloaded" % (name, self.port, waited, self.received - heard))
 
     def call(self, name, *args, **kw):
         """request() with a UserError instead of TimeoutError (for CLI commands)."""

@@ -158,6 +158,11 @@ def build(board, out_dir):
     return files
 
 
+class BoardSilent(UserError):
+    """mpremote got no answer in its time: the board stopped answering (or the computer is too
+    busy to run it); what was under way is said in the message."""
+
+
 def mpremote(port, *commands, timeout=120):
     """Run `mpremote connect PORT <commands...>`; commands are lists joined with '+'."""
     args = [mpremote_executable(), "connect", port]
@@ -165,7 +170,10 @@ def mpremote(port, *commands, timeout=120):
         if i:
             args.append("+")
         args += list(cmd)
-    proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
+    try:
+        proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise BoardSilent("mpremote on %s got no answer in %d s: the board stopped answering" % (port, timeout)) from None
     if proc.returncode:
         msg = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["exit %d" % proc.returncode]
         raise UserError("mpremote on %s failed: %s" % (port, msg[0]))
@@ -247,7 +255,13 @@ def flash(port, board_name="sim", calibration=None, progress=print, replace_boar
         progress("copying %d files to %s" % (len(files), port))
         cmds = [["exec", _PREPARE % (STAGING, [STAGING] + dirs)]]
         cmds += [["fs", "cp", str(src), ":" + STAGING + "/" + dst] for src, dst in files]
-        mpremote(port, *cmds)
+        try:
+            mpremote(port, *cmds)
+        except UserError as exc:
+            # The copy only fills the staging directory, which the next try empties first, so
+            # it is safe to repeat: a busy computer can starve a virtual board's raw REPL once.
+            progress("copying again (%s)" % exc)
+            mpremote(port, *cmds)
         progress("installing (atomic renames)")
         swaps = [(STAGING + "/" + name, name, any(d.startswith(name + "/") for _, d in files)) for name in live]
         out = mpremote(port, ["exec", _SWAP % (swaps, STAGING)])
