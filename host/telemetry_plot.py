@@ -55,13 +55,14 @@ class TelemetryFigure:
     """The four panels on `figure` (a matplotlib Figure); raw=True draws the ADC codes of a
     board without calibration instead of positions, deformation and force."""
 
-    def __init__(self, figure, raw=False, title=None):
+    def __init__(self, figure, raw=False, title=None, animated=False):
         self.figure = figure
         self.axes = figure.subplots(4, 1, sharex=True)
         self.lines = []
         for ax, (ylabel, lines) in zip(self.axes, RAW_PANELS if raw else CALIBRATED_PANELS):
             for label, style, values in lines:
-                (line,) = ax.plot([], [], style, label=label, lw=1)
+                # animated: left out of a full draw, drawn over a saved background (blitting)
+                (line,) = ax.plot([], [], style, label=label, lw=1, animated=animated)
                 self.lines.append((line, values))
             ax.set_ylabel(ylabel)
             ax.grid(True, alpha=0.3)
@@ -70,13 +71,14 @@ class TelemetryFigure:
         if title:
             figure.suptitle(title)
 
-    def show(self, t, run):
+    def show(self, t, run, autoscale=True):
         """Draw the run dict `run` (field -> array) against `t` (seconds) on every line."""
         for line, values in self.lines:
             line.set_data(t, values(run))
-        for ax in self.axes:
-            ax.relim()
-            ax.autoscale_view()
+        if autoscale:
+            for ax in self.axes:
+                ax.relim()
+                ax.autoscale_view()
 
 
 def plot(csv_path, out_path, warn=None):
