@@ -6,6 +6,8 @@ import json
 from firmware.controller import MODE_NAMES
 from firmware.safety import FAULT_NAMES
 from firmware.telemetry import FIELDS
+import host
+from firmware.app import VERSION
 from host import cli
 from host.telemetry_log import UNITS, load
 
@@ -24,8 +26,9 @@ def test_host_log_writes_the_metadata_beside_the_csv(tmp_path, capsys):
                      "--out", str(out)]) == 0
     assert "run.meta.json" in capsys.readouterr().out
     meta = json.loads((tmp_path / "run.meta.json").read_text())
-    assert meta["board"] == "sim" and meta["stream_hz"] == 200 and meta["loop_period_us"] == 1000
+    assert meta["board"] == "sim" and meta["stream_hz"] == 200 and meta["loop_period_us"] == 1000 and meta["loop_hz"] == 1000
     assert meta["calibration_crc"] == "%08x" % json.loads(cal.read_text())["crc32"]
+    assert meta["firmware"] == VERSION and meta["host"] == host.__version__
     assert list(meta["columns"]) == list(FIELDS) and meta["date"].endswith("+00:00")
     assert meta["modes"] == {str(i): n for i, n in enumerate(MODE_NAMES)}
     assert meta["faults"] == {str(b): n for b, n in FAULT_NAMES}

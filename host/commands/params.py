@@ -6,7 +6,9 @@ the host never carries a second copy that could disagree with the firmware it ta
 
 import json
 
-from host.board_client import add_port_arguments, open_board
+from host.api import Board
+from host.board_client import add_port_arguments
+from host.board_params import check_value
 from host.errors import UserError
 
 
@@ -26,26 +28,10 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
-class Param:
-    """One row of the board's parameter table."""
-
-    def __init__(self, row):
-        self.name, self.value, self.default, self.lo, self.hi, self.unit = row
-
-    def as_dict(self):
-        return {"name": self.name, "value": self.value, "default": self.default, "min": self.lo, "max": self.hi,
-                "unit": self.unit}
-
-
-def read_table(board):
-    """{name: Param} in the board's order."""
-    return {row[0]: Param(row) for row in board.call("params")}
-
-
 def parse_items(items, table):
-    """(names to read, [(name, value)] to set) from NAME and NAME=VALUE words, checked against
+    """(names to read, {name: value} to set) from NAME and NAME=VALUE words, checked against
     the table; UserError names the first bad word."""
-    reads, sets = [], []
+    reads, sets = [], {}
     for item in items:
         name, eq, text = item.partition("=")
         if name not in table:
@@ -57,10 +43,7 @@ def parse_items(items, table):
             value = int(text.strip())
         except ValueError:
             raise UserError("%s=%s: the value must be a whole number (in %s)" % (name, text, table[name].unit)) from None
-        p = table[name]
-        if not p.lo <= value <= p.hi:
-            raise UserError("%s=%d is outside the firmware's limits %d..%d %s" % (name, value, p.lo, p.hi, p.unit))
-        sets.append((name, value))
+        sets[name] = check_value(table, name, value)
     return reads, sets
 
 
@@ -80,17 +63,16 @@ def describe(table, saved=None):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load) as board:
-        table = read_table(board)
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load) as board:
+        table = board.params()
         reads, sets = parse_items(args.items, table)  # all checked before anything is set
         if args.defaults:
-            sets = [(p.name, p.default) for p in table.values()] + sets
-        for name, value in sets:
-            board.call("set", name, value)
-        if sets:
-            table = read_table(board)
-        saved_result = board.call("save") if args.save else None
-        status = board.call("status")
+            sets = dict({p.name: p.default for p in table.values()}, **sets)
+        if sets or args.save:
+            table, saved_result = board.set_params(sets, save=args.save)
+        else:
+            saved_result = None
+        status = board.status()
     if reads:
         values = {name: table[name].value for name in reads}
         if args.json:
@@ -106,7 +88,7 @@ def run(args):
     if not sets or args.save or args.defaults:
         print("\n".join(describe(table, status.get("params_saved"))))
     else:
-        for name, value in sets:
+        for name in sets:
             print("%s = %d %s" % (name, table[name].value, table[name].unit))
     if status.get("params_file_error"):
         print("saved parameters not loaded at boot: %s" % status["params_file_error"])

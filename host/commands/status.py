@@ -2,7 +2,8 @@
 
 import json
 
-from host.board_client import add_port_arguments, open_board
+from host.api import Board
+from host.board_client import add_port_arguments
 
 # known fields first, in this order, with how to show them; any other field follows as it is
 LABELS = (
@@ -73,8 +74,8 @@ def describe(status):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load) as board:
-        status = board.status_info
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load) as board:
+        status = board.status()
     if args.json:
         print(json.dumps(status, indent=1, sort_keys=True))
     else:
