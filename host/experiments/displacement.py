@@ -64,12 +64,10 @@ def max_error(rows, lo=1.0, hi=59.0):
 
 
 def plot(path, before, after):
-    import matplotlib
+    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig = Figure(figsize=(7.5, 4.5))
+    ax = fig.subplots()
     for rows, name, style in ((before, "nominal 2-point pot calibration", "o-"), (after, "after calibration", "s-")):
         ax.plot([r["target"] for r in rows], [r["error"] for r in rows], style, ms=4,
                 label="%s (max |e| %.3f mm)" % (name, max_error(rows)))
@@ -81,4 +79,3 @@ def plot(path, before, after):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -125,12 +125,10 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
 
 
 def plot_df(path, x, df, coeffs, resid, direction=None):
-    import matplotlib
+    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig = Figure(figsize=(7.5, 4.5))
+    ax = fig.subplots()
     ax.plot(x, df, ".", ms=2, color="tab:orange", label="Df = D1 - D2 before (peak %.2f mm)" % np.max(np.abs(df)))
     ax.plot(x, resid, ".", ms=2, color="tab:blue", label="after: Df - Df_hat (peak %.3f mm)" % np.max(np.abs(resid)))
     grid = np.linspace(np.min(x), np.max(x), 400)
@@ -143,5 +141,4 @@ def plot_df(path, x, df, coeffs, resid, direction=None):
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

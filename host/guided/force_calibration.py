@@ -431,12 +431,10 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
 
 
 def plot_force(path, d, f, s, fit):
-    import matplotlib
+    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    fig = Figure(figsize=(7, 6.5))
+    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
     down = s > 0
     ax.plot(d[down], f[down], "v", color="tab:red", ms=4, label="force fell (block slid toward 0 mm)")
     ax.plot(d[~down], f[~down], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
@@ -459,5 +457,4 @@ def plot_force(path, d, f, s, fit):
     ax2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path
