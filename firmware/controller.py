@@ -63,7 +63,7 @@ PARAMS = (  # name, default, min, max, unit (what `host params` shows; the comme
     ("slow_zone_um", 5000, 1, 65535, "um"),  # |duty| toward a limit is capped, falling to 0 over this
     ("defl_rate_um", 2, 0, 65535, "um per step"),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
     ("stop_margin_um", 300, -65535, 65535, "um"),  # the soft limits stay this far inside the calibrated end stops
-    ("pos_deadband_um", 15, 0, 20000, "um"),  # position mode with friction feed-forward: parked (no push, no integration) inside this, until 3x it
+    ("pos_deadband_um", 8, 0, 20000, "um"),  # position mode with friction feed-forward: parked (no push, no integration) inside this, until 3x it
 )
 _MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
 
@@ -94,6 +94,7 @@ _M_DEFL = const(2)
 _M_FORCE = const(3)
 _M_FRIC = const(8)
 _M_FF_DUTY = const(15)  # measurement.FF_DUTY
+_PARK_STEPS = const(50)  # position mode: steps inside the deadband before the block counts as parked
 
 # Controller.st
 MODE = const(0)
@@ -112,7 +113,7 @@ HAS_MEAS = const(12)  # 1 while a Measurement is set (an int test is 2 instructi
 LIM_LO = const(13)  # the soft stroke limits in force on D2, um (apply_params works them out)
 LIM_HI = const(14)
 EF = const(15)  # position mode: the error low-passed over ~16 steps, um (decides the friction feed-forward)
-PARKED = const(16)  # position mode with feed-forward: 1 while the block is held inside the deadband
+PARKED = const(16)  # position mode with feed-forward: steps inside the deadband, up to _PARK_STEPS (parked)
 WORDS = const(17)
 
 # the step's record for the telemetry ring, in the order of telemetry.FIELDS
@@ -301,21 +302,25 @@ class Controller:
                 ki = p[P_KI_POS]
                 ff = 0
                 if ffd:
-                    # parked once the filtered error is inside the deadband; unparked only when it
-                    # leaves three times that, so that noise at the edge cannot toggle the push
+                    # Parked once the filtered error has stayed inside the deadband for PARK_STEPS
+                    # (a block passing through the target at speed is not parked, or it coasts
+                    # on past it), unparked only when it leaves three times that, so that noise at
+                    # the edge cannot toggle the push. Inside the band the push is off.
                     db = p[P_POS_DEADBAND]
                     aef = ef if ef >= 0 else -ef
-                    if c[PARKED]:
+                    inside = c[PARKED]
+                    if inside >= _PARK_STEPS:
                         if aef > 3 * db:
-                            c[PARKED] = 0
+                            inside = 0
                     elif aef <= db:
-                        c[PARKED] = 1
-                    if c[PARKED]:
-                        ki = 0
-                    elif ef > 0:
-                        ff = ffd
+                        inside = inside + 1
                     else:
-                        ff = -ffd
+                        inside = 0
+                    c[PARKED] = inside
+                    if inside >= _PARK_STEPS:
+                        ki = 0
+                    elif aef > db:
+                        ff = ffd if ef > 0 else -ffd
                 lim = p[P_OUT_LIMIT]
                 cmd = int(self._pi_update(e, p[P_KP_POS], ki, lim, p[P_INT_LIMIT])) + ff
                 if cmd > lim:

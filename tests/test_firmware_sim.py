@@ -189,7 +189,7 @@ STICKY_TARGETS = [30000, 30500, 30300, 31000, 29700, 45000, 44950, 10000]
 @pytest.mark.parametrize("feed_forward", [True, False])
 def test_position_on_a_sticky_block_parks_without_a_limit_cycle(tmp_path, feed_forward):
     """1.1 N of block friction (3.7x boards/sim.json's). With the friction's feed-forward duty the
-    block reaches every target within the deadband's hysteresis (3 x 15 um) plus the calibration's
+    block reaches every target within the deadband's hysteresis (3 x 8 um) plus the calibration's
     error, settles in under 1.5 s, and then does not move at all (a limit cycle would); without
     it (an older calibration: friction alone) the PI leaves the block stuck short for seconds."""
     board = fake_hardware.sim_board()
