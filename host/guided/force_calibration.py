@@ -151,7 +151,7 @@ def force_points(session, rig, prompter, opts, side="high"):
                 _ramp_duty(client, sign * previous, sign * duty)
                 previous = duty
                 acquire.collect(client, opts.settle_s)  # let it come to rest against the fibre
-                rec = acquire.collect(client, 0.3)
+                rec = deformation_records(client)
                 d.append(acquire.mean(rec, "defl_um") / 1000.0)
                 g = gauge.record(rec)
                 loading.append(load)
@@ -176,6 +176,23 @@ def _levels_until(step, cap):
     """Loading duties step, 2 step, ... up to cap: the first round stops early at the force range."""
     n = max(1, int(cap // step))
     return [step * (i + 1) for i in range(n)]
+
+
+DEFL_SE_UM = 1.5  # the standard error a point's mean deformation is averaged down to
+POINT_S = (0.3, 1.5)  # ... over at least and at most this long (board seconds)
+
+
+def deformation_records(client):
+    """Telemetry at rest for one force point: 0.3 s, and more until the mean deformation's
+    standard error is DEFL_SE_UM (1.5 s at most). Noisy pots on a stiff spring otherwise put
+    their noise into F0: 5 LSB of pot noise left 5 um on a 0.3 s mean, 0.1 N at 19 N/mm."""
+    rec = acquire.collect(client, POINT_S[0])
+    while len(rec) > 2 and len(rec) < POINT_S[1] * acquire.STREAM_HZ:
+        d = rec[:, acquire.COL["defl_um"]].astype(float)
+        if np.std(d) / np.sqrt(len(d)) <= DEFL_SE_UM:
+            break
+        rec = np.concatenate([rec, acquire.collect(client, POINT_S[0])])
+    return rec
 
 
 @dataclass
