@@ -24,7 +24,7 @@ from firmware.controller import (
     POSITION,
     Controller,
 )
-from firmware.measurement import STROKE_CLAMP_UM, Measurement
+from firmware.measurement import STROKE_CLAMP_UM, Measurement, board_problem
 from firmware.motor import Motor
 from firmware.pi_control import DUTY_MAX
 from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
@@ -131,17 +131,13 @@ class App:
             self.calibration_error = "no calibration loaded"
             return
         try:
+            why = board_problem(cal, self.board)  # before any curve is evaluated
+            if why is not None:
+                self.calibration_error = why
+                return
             meas = Measurement(cal)
-        except (ValueError, TypeError, AttributeError, MemoryError) as exc:
+        except Exception as exc:  # MemoryError, a curve that falls, anything: boot on without it
             self.calibration_error = "calibration unusable: %s" % (exc,)
-            return
-        made_for = getattr(cal, "board", None)
-        if made_for is not None and made_for != self.board["name"]:
-            self.calibration_error = "calibration made for board %s, this board is %s" % (made_for, self.board["name"])
-            return
-        if meas.adc_bits != self.board["adc_bits"]:
-            self.calibration_error = "calibration made for a %d-bit ADC, this board's is %d-bit" % (
-                meas.adc_bits, self.board["adc_bits"])
             return
         meas.update(self.sampler.raw1, self.sampler.raw2)
         self.calibration = cal
