@@ -248,3 +248,8 @@ def test_a_calibration_whose_evaluation_fails_leaves_the_board_running_without_i
     assert st["calibration_crc"] is None and "unusable" in st["calibration_error"], st
     assert firmware_cases.pwm_duties(app) == [0, 0]
     app.set_mode("open_loop")
+
+
+def test_temporary_parameters_come_back_when_the_host_goes_silent(data_path):
+    here, there = both("case_temporary_params_come_back_when_the_host_goes_silent(PATH)", data_path)
+    assert here == there
