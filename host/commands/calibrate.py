@@ -4,6 +4,7 @@ from pathlib import Path
 
 from host.errors import UserError
 from host.guided.flow import BRINGUP, STEPS, Options, bringup_done, run_steps
+from host.models import MODELS
 from host.numbers import ranged
 
 
@@ -51,7 +52,7 @@ def add_method_arguments(p):
                    help="the paper's method: BCM-3 pots, a quartic Df, quadratic force fits without friction, gauge "
                    "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
                    "--gauge-sides high --no-friction, and it overrides those options)")
-    p.add_argument("--model", default="auto", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
+    p.add_argument("--model", default="auto", choices=list(MODELS) + ["auto"], metavar="MODEL", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
