@@ -36,6 +36,19 @@ def test_commands_run_without_posix_modules(args):
     assert "Traceback" not in proc.stderr
 
 
+def test_board_free_commands_do_their_work_and_board_commands_reach_the_port(tmp_path):
+    """Not only --help: compare and demo write their files, and status, move and log open the
+    serial port (here a missing one: the one error line a real user would get)."""
+    proc = _host("compare", "examples/sweep_60mm.csv", "--orders", "2-3", "--models", "bcm,pwl", "--out", str(tmp_path / "cmp"), "-q")
+    assert proc.returncode == 0 and list((tmp_path / "cmp").glob("*.png")), proc.stderr
+    proc = _host("demo", "--out", str(tmp_path / "demo"), "-q")
+    assert proc.returncode == 0 and (tmp_path / "demo" / "report.md").exists(), proc.stderr
+    for args in (["status"], ["move", "--to", "30"], ["log", "--out", str(tmp_path / "run.csv")]):
+        proc = _host(*args, "--port", str(tmp_path / "ttyNONE"))
+        err = proc.stderr.strip().splitlines()
+        assert proc.returncode == 2 and len(err) == 1 and "not found" in err[0], (args, proc.stderr)
+
+
 def test_the_virtual_board_says_in_one_line_where_it_cannot_run():
     proc = _host("status", "--port", "sim")
     assert proc.returncode == 2
