@@ -47,13 +47,24 @@ def test_a_damaged_file_is_refused_whole_with_the_reason(tmp_path, damage, reaso
     assert got == {} and reason in why
 
 
+def _params_file(path, lines):
+    """A params file with a right CRC around `lines` (save itself refuses to write these)."""
+    import binascii
+
+    body = "\n".join([saved_params.HEADER] + lines) + "\n"
+    with open(path, "w") as f:
+        f.write(body + "crc %08x\n" % (binascii.crc32(body.encode()) & 0xFFFFFFFF))
+
+
 def test_a_value_outside_the_table_or_an_unknown_name_is_refused(tmp_path):
     table = [("a", 1, 0, 10, "x"), ("b", 2, 0, 10, "x")]
     path = str(tmp_path / "p.txt")
-    saved_params.save(path, table, [5, 11])
+    _params_file(path, ["a 5", "b 11"])
     assert "outside 0..10" in saved_params.load(path, table)[1]
-    saved_params.save(path, table + [("c", 0, 0, 1, "x")], [1, 2, 0])
+    _params_file(path, ["a 1", "b 2", "c 0"])
     assert "unknown parameter" in saved_params.load(path, table)[1]
+    with pytest.raises(ValueError, match="outside 0..10"):  # nor does save write such a file
+        saved_params.save(path, table, [5, 11])
 
 
 def test_no_file_means_defaults_and_no_complaint(tmp_path):
