@@ -92,3 +92,38 @@ def test_a_calibration_killed_while_a_person_reads_the_gauge_leaves_the_stroke_l
             st = board.call("status")
         assert st["stroke_um"] == before and st["params_temporary"] == [], st
         assert st["mode"] == "idle" and st["params_changed"] == [], st
+
+
+def test_a_sweep_and_a_tuning_run_change_the_board_only_temporarily(calibration):
+    """What the board holds while a sweep's stroke limits are open and while a tuning trial runs:
+    temporary values, the ones the firmware restores by itself; after each, nothing."""
+    from host.guided import acquire
+    from host.tuning import tune
+
+    class Watching:
+        """The client, asking the board which values are temporary whenever a step starts."""
+
+        def __init__(self, board):
+            self.board = board
+            self.seen = []
+
+        def call(self, name, *args, **kw):
+            if name == "target" and not self.seen:
+                self.seen.append(self.board.call("status")["params_temporary"])
+            return self.board.call(name, *args, **kw)
+
+        def __getattr__(self, name):
+            return getattr(self.board, name)
+
+    with VirtualBoard(calibration=calibration) as vb, BoardClient(vb.path) as board:
+        before = board.call("status")["stroke_um"]
+        with acquire.open_stroke(board):
+            st = board.call("status")
+            assert st["params_temporary"] == ["stroke_min_um", "stroke_max_um"] and st["stroke_um"] == [-65535, 65535], st
+        st = board.call("status")
+        assert st["params_temporary"] == [] and st["stroke_um"] == before, st
+        watching = Watching(board)
+        tune(watching, "position", 25000, 2000, 0.3, 50, grid={"kp_pos": [700], "ki_pos": [20]})
+        assert watching.seen == [["kp_pos", "ki_pos"]], watching.seen
+        st = board.call("status")
+        assert st["params_temporary"] == [] and (board.call("get", "kp_pos"), board.call("get", "ki_pos")) != (700, 20)
