@@ -59,7 +59,33 @@ def test_the_virtual_board_says_in_one_line_where_it_cannot_run():
 def test_a_missing_tool_names_the_install_command_for_this_kind_of_install(monkeypatch, tmp_path):
     import host.errors as errors
 
-    assert errors.install_hint("sim") == "pip install -e '.[sim]'"  # this checkout
+    assert errors.install_hint("sim") == "pip install -e '%s[sim]'" % REPO  # this checkout, from anywhere
     monkeypatch.setattr(errors, "__file__", str(tmp_path / "site-packages" / "host" / "errors.py"))
+    monkeypatch.setattr(errors, "_installed_from", lambda: None)  # from an index or a wheel
     assert errors.install_hint("sim") == "pip install 'lsea-kit[sim]'"
     assert errors.install_hint() == "pip install 'lsea-kit'"
+    monkeypatch.setattr(errors, "_installed_from", lambda: "/home/me/lsea-kit")  # pip install /home/me/lsea-kit
+    assert errors.install_hint("sim") == "pip install '/home/me/lsea-kit[sim]'"
+
+
+def test_where_pip_installed_from_is_read_from_its_record(monkeypatch):
+    """PEP 610's direct_url.json as pip writes it for a local directory, an editable checkout
+    and an index (no record)."""
+    import json
+    from importlib import metadata
+
+    import host.errors as errors
+
+    class Dist:
+        def __init__(self, record):
+            self.record = record
+
+        def read_text(self, name):
+            return None if self.record is None else json.dumps(self.record)
+
+    for record, expected in (({"dir_info": {}, "url": "file:///tmp/lsea%20kit"}, "/tmp/lsea kit"),
+                             ({"dir_info": {"editable": True}, "url": "file:///work/lsea-kit"}, "/work/lsea-kit"),
+                             ({"archive_info": {}, "url": "file:///tmp/lsea_kit-0.1.0-py3-none-any.whl"}, None),
+                             (None, None)):
+        monkeypatch.setattr(metadata, "distribution", lambda name, r=record: Dist(r))
+        assert errors._installed_from() == expected, record
