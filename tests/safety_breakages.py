@@ -1,6 +1,6 @@
 """Deliberate breakages of the firmware's safety code, each of which must fail the suite.
 
-    .venv/bin/python tests/safety_breakages.py
+    .venv/bin/python tests/safety_breakages.py [WORDS]    (WORDS: only the breakages whose description has them)
 
 Applies one breakage at a time to the working tree, runs the firmware safety tests, prints the
 first failing test (or NOT CAUGHT), and puts the file back. Not collected by pytest (it edits
@@ -75,7 +75,7 @@ BREAKS = [
   ["tests/test_temporary_settings.py"]),
  ("the manual sweep keeps the stroke limits open while the person reads the gauge", "host/guided/pot_calibration.py",
   "    with acquire.open_stroke(client):\n        acquire.drive_to_stop(client, -2500)\n    for sign in (1, -1):",
-  "    acquire.open_stroke(client).__enter__()\n    acquire.drive_to_stop(client, -2500)\n    for sign in (1, -1):",
+  "    kept_open = acquire.open_stroke(client)\n    kept_open.__enter__()\n    acquire.drive_to_stop(client, -2500)\n    for sign in (1, -1):",
   ["tests/test_temporary_settings.py"]),
  ("the bcm3 layout check lets handle spreads past 2**21 through", "firmware/bcm_fixed.py",
   "    if max(p) - min(p) > 1 << 21 or not", "    if max(p) - min(p) > 1 << 28 or not",
@@ -92,9 +92,11 @@ BREAKS = [
 ]
 
 
-def main():
+def main(only=None):
+    """Apply every breakage (or those whose description contains `only`)."""
     caught = 0
-    for what, path, old, new, *tests in BREAKS:
+    breaks = [b for b in BREAKS if only is None or only in b[0]]
+    for what, path, old, new, *tests in breaks:
         file = REPO / path
         src = file.read_text()
         if old not in src:
@@ -109,9 +111,9 @@ def main():
         fails = [line for line in r.stdout.splitlines() if line.startswith("FAILED")]
         caught += bool(fails)
         print("%s -> %s" % (what, fails[0].split(" - ")[0] if fails else "NOT CAUGHT"))
-    print("%d of %d breakages caught" % (caught, len(BREAKS)))
-    return 0 if caught == len(BREAKS) else 1
+    print("%d of %d breakages caught" % (caught, len(breaks)))
+    return 0 if caught == len(breaks) else 1
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(main(sys.argv[1] if len(sys.argv) > 1 else None))
