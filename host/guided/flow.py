@@ -152,10 +152,16 @@ def run_steps(session, rig, prompter, steps, opts):
         if full and step == "pots":
             # new pot curves: the Df and force sections were measured through the old ones
             doc = new_document(board=board_name)
+            old = {}
             try:
-                doc["pots"] = dict(read_calibration(path).get("pots") or {}) if path.exists() else {}
+                old = read_calibration(path) if path.exists() else {}
+                doc["pots"] = dict(old.get("pots") or {})
             except UserError:
                 pass
+            dropped = [n for n in ("df", "force", "force_inverse", "friction") if old.get(n) and n not in outcome.sections]
+            if dropped:
+                prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
+                             % (", ".join(dropped), path))
             for name, section in outcome.sections.items():
                 if name in POT_SECTIONS:
                     doc[name] = section
