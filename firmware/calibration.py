@@ -259,8 +259,8 @@ def load_calibration(path):
     try:
         with open(path, "rb") as f:
             raw = f.read()
-    except OSError:
-        raise CalibrationError("no calibration file at %s" % path)
+    except OSError as exc:  # there, but a directory or unreadable: say so, not "missing"
+        raise CalibrationError("cannot read %s (%s)" % (path, exc))
     try:
         text = raw.decode()
     except Exception:  # UnicodeError on CPython, ValueError/UnicodeError on MicroPython

@@ -181,7 +181,9 @@ class Link:
         if name == "get":
             return app.get_param(args[0])
         if name == "set":
-            app.set_param(args[0], P.parse_int(args[1]))
+            if len(args) > 2 and args[2] != "temp":
+                raise ValueError("set NAME VALUE [temp]")
+            app.set_param(args[0], P.parse_int(args[1]), temporary=len(args) > 2)
             return None
         if name == "params":
             return app.params()

@@ -79,6 +79,21 @@ def adc_bits_of(kind, k):
     return (29 if kind == "bcm3" else 16) - k[1 if kind == "pwl" else 0]
 
 
+def board_problem(calibration, board):
+    """Why `calibration` cannot be used on `board` (a board file's dict), or None: it was made
+    for another board, or for another ADC width. Checked before a Measurement is made from it:
+    that evaluates every code of the width a pot's constants declare, and a bcm3 with input
+    shift 0 declares 29 bits (2**29 codes: hours on a Cortex-M0, the board silent meanwhile)."""
+    made_for = getattr(calibration, "board", None)
+    if made_for is not None and made_for != board["name"]:
+        return "calibration made for board %s, this board is %s" % (made_for, board["name"])
+    for name, (kind, k) in (("pot1", calibration.pot1), ("pot2", calibration.pot2)):
+        bits = adc_bits_of(kind, k)
+        if bits != board["adc_bits"]:
+            return "calibration made for a %d-bit ADC (%s), this board's is %d-bit" % (bits, name, board["adc_bits"])
+    return None
+
+
 def _converter(kind):
     if kind == "bcm3":
         return bcm3

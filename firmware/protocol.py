@@ -57,8 +57,8 @@ TYPE_NAMES = {number: name for number, name, _ in FRAME_TYPES}
 # arguments must fit +-2**30 (the board's small-int range).
 COMMANDS = (
     ("status", (), "object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
-     "step_us_max, overruns, period_us, stroke_um, end_stops_um, params_changed, params_saved, params_file_error, params_restored, "
-     "timer, interpreter, mpy, last_exit, protocol",
+     "step_us_max, overruns, period_us, stroke_um, end_stops_um, params_changed, params_saved, params_file_error, "
+     "params_restored, params_temporary, timer, interpreter, mpy, last_exit, protocol",
      "identify the firmware and report its state (the handshake)"),
     ("stop", (), "null", "motor off, mode idle"),
     ("mode", ("name",), "null", "switch mode: idle, open_loop, position or force"),
@@ -66,7 +66,9 @@ COMMANDS = (
      "set the target of the current mode: um (position), mN (force), signed duty (open_loop)"),
     ("stream", ("on/off", "[hz:int]"), "object: hz", "start telemetry at hz (default 1000) or stop it"),
     ("get", ("param",), "int", "read a controller parameter"),
-    ("set", ("param", "value:int"), "null", "write a controller parameter"),
+    ("set", ("param", "value:int", "[temp]"), "null",
+     "write a controller parameter; `temp`: for the command that sets it only, restored to its value before "
+     "once the host is silent for host_timeout_ms (a plain `set` keeps it, and ends a temporary value)"),
     ("params", (), "list of [name, value, default, min, max, unit]",
      "the parameters `get`/`set` accept, with the values in force and their table"),
     ("save", (), "object: file, saved (names that differ from the defaults)",

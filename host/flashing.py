@@ -187,10 +187,11 @@ def file_crc(path):
 def check_files(board_path, calibration=None):
     """The firmware's own checks on every file flash would install, before the board is touched:
     the board file (firmware.board_config), the calibration (firmware.calibration: size, CRC,
-    every section's layout) and that the calibration was made for this board and ADC width."""
+    every section's layout), that it was made for this board and ADC width, and what the boot
+    checks of its curves (firmware.measurement: each pot's position grows with the code)."""
     from firmware.board_config import BoardError, load_board
     from firmware.calibration import CalibrationError, load_calibration
-    from firmware.measurement import adc_bits_of
+    from firmware.measurement import Measurement, board_problem
 
     try:
         board = load_board(str(board_path))
@@ -206,12 +207,14 @@ def check_files(board_path, calibration=None):
         raise UserError("calibration %s refused (the board keeps its own): %s" % (calibration, exc)) from None
     except (RecursionError, MemoryError, ValueError, TypeError, KeyError) as exc:
         raise UserError("calibration %s refused (the board keeps its own): unreadable (%s)" % (calibration, type(exc).__name__)) from None
-    if cal.board not in (None, board["name"]):
-        raise UserError("calibration %s was made for board %s, not %s" % (calibration, cal.board, board["name"]))
-    bits = {adc_bits_of(*cal.pot1), adc_bits_of(*cal.pot2)}
-    if bits != {board["adc_bits"]}:
-        raise UserError("calibration %s is for a %s-bit ADC, board %s has %d bits"
-                        % (calibration, "/".join(map(str, sorted(bits))), board["name"], board["adc_bits"]))
+    why = board_problem(cal, board)
+    if why is None:
+        try:
+            Measurement(cal, tabulate=False)
+        except ValueError as exc:
+            why = str(exc)
+    if why is not None:
+        raise UserError("calibration %s refused (the board keeps its own): %s" % (calibration, why))
     return board
 
 
@@ -219,11 +222,11 @@ def identify(port):
     """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
     from host.board_client import BoardClient
 
-    try:
-        with BoardClient(port, check=False) as client:
+    with BoardClient(port, check=False) as client:  # a missing or busy port is for the user to fix
+        try:
             return client.handshake().get("board")
-    except (UserError, OSError):
-        return None
+        except (UserError, OSError):
+            return None
 
 
 def flash(port, board_name="sim", calibration=None, progress=print, replace_board=False, ask_board=True):

@@ -90,8 +90,9 @@ def _backups(path):
 def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at):
     before = old_file.read_bytes()
     _steps(monkeypatch, fail_at=fail_at)
+    quiet = Quiet()
     with pytest.raises(KeyboardInterrupt):
-        flow.run_steps(Session(), None, Quiet(), flow.STEPS, flow.Options(out=old_file))
+        flow.run_steps(Session(), None, quiet, flow.STEPS, flow.Options(out=old_file))
     if fail_at == "pots":  # nothing accepted: the file is untouched, no backup needed
         assert old_file.read_bytes() == before and _backups(old_file) == []
         return
@@ -99,8 +100,11 @@ def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at
     assert backup.read_bytes() == before  # every old section kept, under a dated name
     now = read_calibration(old_file)
     assert now["pot1"]["pot_id"] == "pot1-new"  # the accepted pots were written
-    # Df and force measured through the old curves went with them, unless re-measured here
+    # Df and force measured through the old curves went with them, unless re-measured here,
+    # and the person was told so
     assert ("df" in now) == (fail_at == "force") and "force" not in now
+    assert any("df, force, force_inverse, friction measured through the old pot curves" in line and "backup" in line
+               for line in quiet.said), quiet.said
 
 
 def test_a_single_step_keeps_the_previous_file_and_changes_only_its_sections(old_file, monkeypatch):

@@ -3,7 +3,8 @@
 from pathlib import Path
 
 from host.errors import UserError
-from host.guided.flow import BRINGUP, STEPS, Options, bringup_done, run_steps
+from host.guided.flow import BRINGUP, STEPS, Options, StepRefused, bringup_done, run_steps
+from host.models import MODELS
 from host.numbers import ranged
 
 
@@ -54,7 +55,7 @@ def add_method_arguments(p):
                    help="the paper's method: BCM-3 pots, a quartic Df, quadratic force fits without friction, gauge "
                    "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
                    "--gauge-sides high --no-friction, and it overrides those options)")
-    p.add_argument("--model", default="auto", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
+    p.add_argument("--model", default="auto", choices=list(MODELS) + ["auto"], metavar="MODEL", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
@@ -159,6 +160,9 @@ def run(args):
     log = RunLog(args.out, "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host calibrate")
     try:
         accepted = calibrate(args, log=log)
+    except StepRefused as exc:  # a verdict: said in the log, then the usual one line and status 2
+        log.stop(str(exc))
+        raise
     except (Exception, KeyboardInterrupt) as exc:
         if not log.measured:  # nothing measured yet (no board, a bad option): the usual one line
             raise

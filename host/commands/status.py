@@ -23,6 +23,7 @@ LABELS = (
     ("params_saved", "saved parameters (boot values)"),
     ("params_file_error", "saved parameters problem"),
     ("params_restored", "parameters restored"),
+    ("params_temporary", "temporary parameters"),
     ("steps", "steps since boot (mod 2**30)"),
     ("period_us", "loop period (us)"),
     ("step_us_max", "longest step (us)"),
@@ -61,7 +62,7 @@ def describe(status):
                 value += "  (host reset clears them)"
         elif key in ("stroke_um", "end_stops_um") and value:
             value = "%s .. %s" % tuple(value)
-        elif key == "params_changed":
+        elif key in ("params_changed", "params_temporary"):
             value = ", ".join(value) if value else "none"
         elif key == "params_saved" and value is not None:
             value = ", ".join("%s=%d" % kv for kv in sorted(value.items())) or "all defaults"

@@ -3,7 +3,8 @@
 Sweeps run in open loop at a low duty from one end stop to the other: they need no calibration,
 and the stop is found from the data (the pots stop changing), not from a guessed time. While a
 sweep runs the firmware's soft stroke limits are opened (they would stop a calibrated board 1 mm
-short of the ends) and restored afterwards. Heartbeats keep the firmware's host timeout away.
+short of the ends) and restored afterwards, by the host or, if it dies, by the firmware (they are
+temporary values). Heartbeats keep the firmware's host timeout away.
 """
 
 import contextlib
@@ -66,12 +67,14 @@ OPEN_STROKE = {"stroke_min_um": -65535, "stroke_max_um": 65535, "stop_margin_um"
 
 @contextlib.contextmanager
 def open_stroke(client):
-    """Let open-loop sweeps reach the end stops on a calibrated board; restore the limits after
-    (and the firmware restores them by itself if this host goes silent)."""
+    """Let open-loop sweeps reach the end stops on a calibrated board; restore the limits after.
+    The open limits are temporary values: a host killed meanwhile gets them restored by the
+    firmware once it has been silent for host_timeout_ms, so keep nothing inside that waits
+    for a person (the firmware would close them again)."""
     saved = {name: client.call("get", name) for name in OPEN_STROKE}
     try:
         for name, value in OPEN_STROKE.items():
-            client.call("set", name, value)
+            client.call("set", name, value, "temp")
         yield
     finally:
         client.call("stop")

@@ -27,6 +27,11 @@ from host.errors import UserError
 from host.guided.checks import Limits
 
 STEPS = ("pots", "assembly", "force")
+
+
+class StepRefused(UserError):
+    """A step's verdict stopped the run (its checks failed, bringup found problems): the person
+    has something to fix, as with any other user error (one line, exit status 2)."""
 BRINGUP = "bringup"
 
 
@@ -91,7 +96,7 @@ def run_bringup(session, rig, prompter, opts, alone, log=None):
     if outcome.ok:
         return outcome
     if alone or prompter.yes or not prompter.accept("Bringup found problems (above). Calibrate anyway?"):
-        raise UserError("bringup found %d problem(s): fix them (see above) and run host calibrate bringup again"
+        raise StepRefused("bringup found %d problem(s): fix them (see above) and run host calibrate bringup again"
                         % len(outcome.sections["bringup"]["problems"]))
     return outcome
 
@@ -149,14 +154,14 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         if not outcome.sections:
             if log:
                 log.done(outcome, accepted=False)
-            raise UserError("%s step produced no calibration: fix what the checks say and run it again" % step)
+            raise StepRefused("%s step produced no calibration: fix what the checks say and run it again" % step)
         question = "Accept the %s calibration?" % step
         if not outcome.ok:
             question = "Some checks FAILED (see above). Accept the %s calibration anyway?" % step
             if prompter.yes:
                 if log:
                     log.done(outcome, accepted=False)
-                raise UserError("%s step failed its checks (see above); not accepted under --yes" % step)
+                raise StepRefused("%s step failed its checks (see above); not accepted under --yes" % step)
         if not prompter.accept(question):
             prompter.say("  %s not accepted: the calibration file keeps its previous %s sections" % (step, step))
             if log:
@@ -166,10 +171,16 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         if full and step == "pots":
             # new pot curves: the Df and force sections were measured through the old ones
             doc = new_document(board=board_name)
+            old = {}
             try:
-                doc["pots"] = dict(read_calibration(path).get("pots") or {}) if path.exists() else {}
+                old = read_calibration(path) if path.exists() else {}
+                doc["pots"] = dict(old.get("pots") or {})
             except UserError:
                 pass
+            dropped = [n for n in ("df", "force", "force_inverse", "friction") if old.get(n) and n not in outcome.sections]
+            if dropped:
+                prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
+                             % (", ".join(dropped), path))
             for name, section in outcome.sections.items():
                 if name in POT_SECTIONS:
                     doc[name] = section

@@ -67,18 +67,20 @@ def manual_sweep(session, rig, pot, points, prompter, say):
     rig.mount_reference(pot)
     client = session.client
     raws, refs, dirs = [], [], []
+    # the stroke limits open for each motion only: not while the person reads the gauge
     with acquire.open_stroke(client):
         acquire.drive_to_stop(client, -2500)
-        for sign in (1, -1):
-            for i in range(points):
-                if i:
+    for sign in (1, -1):
+        for i in range(points):
+            if i:
+                with acquire.open_stroke(client):
                     pulse = acquire.collect_pulse(client, sign * 2000, 60.0 / points / 25.0)
-                    if acquire.stalled_at_end(pulse):
-                        break
-                rec = acquire.collect(client, 0.3)
-                raws.append(acquire.mean(rec, RAW[pot]))
-                refs.append(prompter.number("Dial gauge reading at stop %d (%s), mm:" % (len(raws), "forward" if sign > 0 else "backward")))
-                dirs.append(sign)
+                if acquire.stalled_at_end(pulse):
+                    break
+            rec = acquire.collect(client, 0.3)
+            raws.append(acquire.mean(rec, RAW[pot]))
+            refs.append(prompter.number("Dial gauge reading at stop %d (%s), mm:" % (len(raws), "forward" if sign > 0 else "backward")))
+            dirs.append(sign)
     return np.array(raws), np.array(refs), np.array(dirs, dtype=float)
 
 
