@@ -13,8 +13,8 @@ from array import array
 
 from firmware import hal
 from firmware.board_config import load_board
-from firmware.controller import FORCE, IDLE, OPEN_LOOP, P_STROKE_MAX, P_STROKE_MIN, POSITION, Controller
-from firmware.measurement import STROKE_CLAMP_UM, Measurement
+from firmware.controller import EF, FORCE, IDLE, OPEN_LOOP, PARKED, POSITION, Controller
+from firmware.measurement import STROKE_CLAMP_UM, Measurement, board_problem
 from firmware.motor import Motor
 from firmware.pi_control import DUTY_MAX
 from firmware.protocol import MODES, PARAMS, PROTOCOL_VERSION, VERSION
@@ -102,7 +102,14 @@ class App:
         # What every parameter is at boot (the saved values, else the table's defaults): a host
         # that goes silent gets them back (watch_host)
         self.boot_params = array("i", self.ctrl.p)
+        # Temporary values (`set NAME VALUE temp`: what a host command changes for itself, such
+        # as the stroke limits a sweep opens or the gains a tuning run tries): which parameters
+        # hold one, how many, and what each was before, restored when the host goes silent
+        self.temporary = array("b", bytes(len(PARAMS)))
+        self.n_temporary = 0
+        self.before_temporary = array("i", self.ctrl.p)
         self.params_restored = None
+        self._timeout_restored = False  # the parameters came back for the host_timeout latched now
         self._timer = None
         self.timer_kind = hal.timer_kind(self.board)  # what the board file asks; start() says what it got
         self._quit = False
@@ -115,26 +122,26 @@ class App:
         self.stop()
         self.ctrl.meas = None
         self.calibration = None
+        self.ctrl.end_stops = None
+        self.ctrl.apply_params()
         if cal is None:
             self.calibration_error = "no calibration loaded"
             return
         try:
+            why = board_problem(cal, self.board)  # before any curve is evaluated
+            if why is not None:
+                self.calibration_error = why
+                return
             meas = Measurement(cal)
-        except (ValueError, TypeError, AttributeError, MemoryError) as exc:
+        except Exception as exc:  # MemoryError, a curve that falls, anything: boot on without it
             self.calibration_error = "calibration unusable: %s" % (exc,)
-            return
-        made_for = getattr(cal, "board", None)
-        if made_for is not None and made_for != self.board["name"]:
-            self.calibration_error = "calibration made for board %s, this board is %s" % (made_for, self.board["name"])
-            return
-        if meas.adc_bits != self.board["adc_bits"]:
-            self.calibration_error = "calibration made for a %d-bit ADC, this board's is %d-bit" % (
-                meas.adc_bits, self.board["adc_bits"])
             return
         meas.update(self.sampler.raw1, self.sampler.raw2)
         self.calibration = cal
         self.calibration_error = None
         self.ctrl.meas = meas
+        self.ctrl.end_stops = getattr(cal, "stroke", None)
+        self.ctrl.apply_params()
 
     # --- commands (each one also counts as hearing from the host) ---------------------------
     def status(self):
@@ -154,11 +161,13 @@ class App:
             "step_us_max": self.ctrl.step_us_max,
             "overruns": self.ctrl.overruns,
             "period_us": self.ctrl.period_us,
-            "stroke_um": [self.ctrl.p[P_STROKE_MIN], self.ctrl.p[P_STROKE_MAX]],
+            "stroke_um": self.ctrl.stroke_limits,
+            "end_stops_um": None if self.ctrl.end_stops is None else list(self.ctrl.end_stops),
             "params_changed": self.params_changed(),
             "params_saved": self.params_saved(),
             "params_file_error": self.params_file_error,
             "params_restored": self.params_restored,
+            "params_temporary": self.params_temporary(),
             "timer": self.timer_kind,
             "interpreter": self.interpreter,
             "mpy": self.mpy,
@@ -208,6 +217,8 @@ class App:
         c.pi.reset()
         if mode == POSITION:
             c.target = c.meas.d2  # hold where it is until told otherwise
+            c.st[EF] = 0
+            c.st[PARKED] = 0
         elif mode == FORCE:
             c.set_force_target(0)
             c.fdir = 0
@@ -259,6 +270,9 @@ class App:
         p = self.ctrl.p
         for i in range(len(p)):
             self.boot_params[i] = p[i]  # what the watchdog restores from now on
+            if self.temporary[i]:  # saved for good now
+                self.temporary[i] = 0
+        self.n_temporary = 0
         return {"file": self.params_path, "saved": self.params_saved()}
 
     def _param_index(self, name):
@@ -271,15 +285,29 @@ class App:
         self.safety.heard()
         return self.ctrl.p[self._param_index(name)]
 
-    def set_param(self, name, value):
+    def set_param(self, name, value, temporary=False):
+        """Set a parameter; `temporary`: for the host command that sets it only, so it goes back
+        to the value it had before when the host goes silent (watch_host). A value set without
+        `temporary` stays, and ends any temporary value of that parameter."""
         i = self._param_index(name)
         value = int(value)
         lo, hi = PARAMS[i][2], PARAMS[i][3]
         if not lo <= value <= hi:
             raise ValueError("%s must be within %d..%d" % (name, lo, hi))
         self.safety.heard()
+        if temporary and not self.temporary[i]:
+            self.before_temporary[i] = self.ctrl.p[i]
+            self.temporary[i] = 1
+            self.n_temporary += 1
+        elif not temporary and self.temporary[i]:
+            self.temporary[i] = 0
+            self.n_temporary -= 1
         self.ctrl.p[i] = value
         self.ctrl.apply_params()
+
+    def params_temporary(self):
+        """Names of the parameters that hold a temporary value."""
+        return [PARAMS[i][0] for i in range(len(PARAMS)) if self.temporary[i]]
 
     def params_changed(self):
         """Names of the parameters that differ from their boot values."""
@@ -287,22 +315,44 @@ class App:
         return [PARAMS[i][0] for i in range(len(PARAMS)) if p[i] != self.boot_params[i]]
 
     def watch_host(self):
-        """Main loop, every pass: once the watchdog has stopped the motor because the host went
-        silent (host_timeout latched), every parameter goes back to its boot value. A host
-        killed mid-sweep must not leave the stroke limits open for the next one; a host that is
-        merely quiet while the board is idle keeps its settings."""
-        if not self.safety.faults & FAULT_HOST_TIMEOUT:
-            return False
-        changed = self.params_changed()
-        if not changed:
-            return False
+        """Main loop, every pass: what the host changed comes back by itself when it goes silent.
+
+        When the watchdog has stopped a motion (host_timeout latched), every parameter goes back
+        to its boot value, once per trip (a host that sets one afterwards keeps it): a host killed
+        mid-sweep must not leave the stroke limits open for the next one. When the host has been
+        silent for host_timeout_ms with the motor off, the temporary values (set_param's
+        `temporary`) go back to what they were before: a host killed between two sweeps, or
+        while its person reads a dial gauge, leaves nothing open either. Values set for good
+        stay while the board is idle, so a host tuning by hand keeps its settings."""
+        sf = self.safety
         p = self.ctrl.p
+        temp = self.temporary
+        if sf.faults & FAULT_HOST_TIMEOUT:
+            if self._timeout_restored:
+                return False
+            self._timeout_restored = True
+            changed = self.params_changed()
+            back = self.boot_params
+            what = "back to boot values"
+        else:
+            self._timeout_restored = False
+            limit = sf.silence_limit
+            if not self.n_temporary or not limit or sf.silence < limit:
+                return False
+            changed = self.params_temporary()
+            back = self.before_temporary
+            what = "(temporary) back to their values before"
         i = 0
         while i < len(p):
-            p[i] = self.boot_params[i]
+            if temp[i] or back is self.boot_params:
+                p[i] = back[i]
+            temp[i] = 0
             i += 1
+        self.n_temporary = 0
+        if not changed:
+            return False
         self.ctrl.apply_params()
-        self.params_restored = "host silent: %s back to boot values" % ", ".join(changed)
+        self.params_restored = "host silent: %s %s" % (", ".join(changed), what)
         return True
 
     def stream(self, state, hz=1000):

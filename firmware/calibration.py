@@ -16,9 +16,14 @@ one line, the CRC over that string) are still read. The payload repeats "schema"
 is also covered by the CRC. Payload keys: "schema", "board", "date", "pots" (identity of
 pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl", "fixed": [ints],
 ...float coefficients, units and fit statistics for people}), and the optional "df", "force",
-"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null), and the optional
-"friction" ({"kind": "friction", "fixed": [h_mN], ...}: the output block's Coulomb friction,
-see firmware/measurement.py).
+"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null; the two force
+sections may also be {"kind": "pwl", ...} tables whose inputs are offset by FORCE_PWL_OFFSET, for
+a spring whose stiffness changes at a point, see firmware/measurement.py), and the optional
+"friction" ({"kind": "friction", "fixed": [h_mN] or [h_mN, ff_duty], ...}: the output block's
+Coulomb friction, see firmware/measurement.py, and the duty that makes the motor hold the spring
+at that force, which position control adds to break the block free, see firmware/controller.py), and the optional "stroke" ({"kind": "stroke", "fixed": [low_um,
+high_um]}: where the output block's end stops are in its calibrated position D2, from which the
+controller keeps its soft stroke limits a margin inside, see firmware/controller.py).
 
 `load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
 integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
@@ -36,15 +41,19 @@ import binascii
 from firmware.bcm_fixed import invalid as bcm3_invalid
 from firmware.bcm_fixed import bcm3
 from firmware.poly_fixed import invalid as poly_invalid
-from firmware.pwl_fixed import pwl
+from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 
 FORMAT = "lsea-kit calibration"
 SCHEMA = 2  # what the host writes; schema 1 is read too
 PAYLOAD_KEY = '\n"payload": '  # schema 2: the payload object starts after this
 POT_SECTIONS = ("pot1", "pot2")
 POLY_SECTIONS = ("df", "force", "force_inverse")
+TABLE_FORCE_SECTIONS = ("force", "force_inverse")  # may be pwl tables instead of polynomials
 FRICTION_SECTION = "friction"
+STROKE_SECTION = "stroke"
+STROKE_MAX_UM = 65535  # measurement.STROKE_CLAMP_UM: positions beyond it are clamped anyway
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
+FF_DUTY_MAX = 5000  # half the duty range: a feed-forward beyond it would be a runaway, not friction
 LIMIT = 1 << 30
 MAX_BYTES = 65536  # the largest calibration file the board reads (ours are a few KB)
 PWL_VALUE_LIMIT = 1 << 29  # pwl_fixed sign-fixes knot values within [-2**29, 2**29)
@@ -166,31 +175,58 @@ def pot_constants(section, name):
 
 
 def poly_constants(section, name):
-    """array('i') of a polynomial section, checked; None when the section is absent."""
+    """array('i') of a polynomial section (or, for the force sections, of a pwl table), checked;
+    None when the section is absent."""
     if section is None:
         return None
-    if not isinstance(section, dict) or section.get("kind", "poly") != "poly":
+    kind = section.get("kind", "poly") if isinstance(section, dict) else None
+    if kind == "pwl" and name in TABLE_FORCE_SECTIONS:
+        values = _int_list(section, name)
+        check_pwl(values, name)
+        _check(values[1] == 0, name, "a force table takes its input unshifted")
+        return array("i", values)
+    if kind != "poly":
         raise CalibrationError("section %s: not a polynomial" % name)
     values = _int_list(section, name)
     check_poly(values, name)
     return array("i", values)
 
 
+def section_kind(section):
+    """'poly' or 'pwl' of a present polynomial-or-table section."""
+    return section.get("kind", "poly") if isinstance(section, dict) else "poly"
+
+
 def friction_constants(section, name=FRICTION_SECTION):
-    """array('i', [h_mN]) of a friction section, checked; None when absent."""
+    """array('i', [h_mN] or [h_mN, ff_duty]) of a friction section, checked; None when absent."""
     if section is None:
         return None
     if not isinstance(section, dict) or section.get("kind", "friction") != "friction":
         raise CalibrationError("section %s: not a friction section" % name)
     values = _int_list(section, name)
-    _check(len(values) == 1, name, "needs [friction mN]")
+    _check(len(values) in (1, 2), name, "needs [friction mN] or [friction mN, feed-forward duty]")
     _check(0 <= values[0] <= FRICTION_MAX_MN, name, "friction must be 0..%d mN" % FRICTION_MAX_MN)
+    _check(len(values) == 1 or 0 <= values[1] <= FF_DUTY_MAX, name, "feed-forward duty must be 0..%d" % FF_DUTY_MAX)
+    return array("i", values)
+
+
+def stroke_constants(section, name=STROKE_SECTION):
+    """array('i', [low_um, high_um]) of the block's end stops, checked; None when absent."""
+    if section is None:
+        return None
+    if not isinstance(section, dict) or section.get("kind", "stroke") != "stroke":
+        raise CalibrationError("section %s: not a stroke section" % name)
+    values = _int_list(section, name)
+    _check(len(values) == 2, name, "needs [low end stop um, high end stop um]")
+    _check(-STROKE_MAX_UM <= values[0] < values[1] <= STROKE_MAX_UM, name,
+           "end stops must rise and lie within +-%d um" % STROKE_MAX_UM)
     return array("i", values)
 
 
 class Calibration:
-    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None,
-    friction as [h_mN] or None."""
+    """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None
+    (force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
+    as [low_um, high_um] or None."""
 
     def __init__(self, body, crc):
         for name in POT_SECTIONS:
@@ -201,7 +237,10 @@ class Calibration:
         self.df = poly_constants(body.get("df"), "df")
         self.force = poly_constants(body.get("force"), "force")
         self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
+        self.force_kind = section_kind(body.get("force"))
+        self.force_inverse_kind = section_kind(body.get("force_inverse"))
         self.friction = friction_constants(body.get(FRICTION_SECTION))
+        self.stroke = stroke_constants(body.get(STROKE_SECTION))
         self.crc = crc
         self.board = body.get("board")
         self.date = body.get("date")
@@ -220,8 +259,8 @@ def load_calibration(path):
     try:
         with open(path, "rb") as f:
             raw = f.read()
-    except OSError:
-        raise CalibrationError("no calibration file at %s" % path)
+    except OSError as exc:  # there, but a directory or unreadable: say so, not "missing"
+        raise CalibrationError("cannot read %s (%s)" % (path, exc))
     try:
         text = raw.decode()
     except Exception:  # UnicodeError on CPython, ValueError/UnicodeError on MicroPython

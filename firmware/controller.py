@@ -46,6 +46,8 @@ P_STROKE_MIN = const(10)
 P_STROKE_MAX = const(11)
 P_SLOW_ZONE = const(12)
 P_DEFL_RATE = const(13)
+P_STOP_MARGIN = const(14)
+P_POS_DEADBAND = const(15)
 _MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
 
 # Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
@@ -74,6 +76,8 @@ _M_D2 = const(1)
 _M_DEFL = const(2)
 _M_FORCE = const(3)
 _M_FRIC = const(8)
+_M_FF_DUTY = const(15)  # measurement.FF_DUTY
+_PARK_STEPS = const(50)  # position mode: steps inside the deadband before the block counts as parked
 
 # Controller.st
 MODE = const(0)
@@ -89,7 +93,11 @@ TIMED = const(9)  # 1 once LAST_START holds a step of this timer run
 STEP_US_MAX = const(10)  # the longest step since boot, us
 OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one or ran >= 1 period
 HAS_MEAS = const(12)  # 1 while a Measurement is set (an int test is 2 instructions, `if obj` ~1300)
-WORDS = const(13)
+LIM_LO = const(13)  # the soft stroke limits in force on D2, um (apply_params works them out)
+LIM_HI = const(14)
+EF = const(15)  # position mode: the error low-passed over ~16 steps, um (decides the friction feed-forward)
+PARKED = const(16)  # position mode with feed-forward: steps inside the deadband, up to _PARK_STEPS (parked)
+WORDS = const(17)
 
 # the step's record for the telemetry ring, in the order of protocol.FIELDS
 _R_T = const(0)
@@ -145,6 +153,7 @@ class Controller:
         # whole into the spare and swapped in by one assignment, so the step never sees a mix.
         self.force_set = zeros(4)
         self._spare_set = zeros(4)
+        self.end_stops = None  # [low_um, high_um] of the block's end stops in D2, from the calibration
         self.apply_params()
 
     # --- the block's fields, for the main loop, people and tests -----------------------------
@@ -170,10 +179,26 @@ class Controller:
         self.st[HAS_MEAS] = 0 if m is None else 1
 
     def apply_params(self):
-        """Push the parameters that live in other objects (call after changing self.p)."""
-        self.safety.set_timeout_ms(self.p[P_HOST_TIMEOUT_MS])
-        self.sampler.rail_reads = self.p[P_RAIL_READS]
-        self.sampler.rail_margin = self.p[P_RAIL_MARGIN]
+        """Push the parameters that live in other objects and work out the stroke limits in
+        force (call after changing self.p or end_stops)."""
+        p = self.p
+        self.safety.set_timeout_ms(p[P_HOST_TIMEOUT_MS])
+        self.sampler.rail_reads = p[P_RAIL_READS]
+        self.sampler.rail_margin = p[P_RAIL_MARGIN]
+        # The block's soft limits: the parameters, and with calibrated end stops never closer to
+        # a stop than the margin (a negative margin, as calibration sweeps set, lets them reach it)
+        lo, hi = p[P_STROKE_MIN], p[P_STROKE_MAX]
+        stops = self.end_stops
+        if stops is not None:
+            lo = max(lo, stops[0] + p[P_STOP_MARGIN])
+            hi = min(hi, stops[1] - p[P_STOP_MARGIN])
+        self.st[LIM_LO] = lo
+        self.st[LIM_HI] = hi
+
+    @property
+    def stroke_limits(self):
+        """[low, high] um: the soft limits on D2 in force."""
+        return [self.st[LIM_LO], self.st[LIM_HI]]
 
     def timer_started(self):
         """The loop timer (re)starts: the first step has no previous one to be late against."""
@@ -227,6 +252,7 @@ class Controller:
         defl = 0
         force = 0
         fric = 0
+        ffd = 0
         if has_meas:
             self._update(s[_S_RAW1], s[_S_RAW2])
             m = ptr32(self._meas.st)
@@ -235,6 +261,7 @@ class Controller:
             defl = ((m[_M_DEFL] + _B29) & _M30) - _B29
             force = ((m[_M_FORCE] + _B29) & _M30) - _B29
             fric = m[_M_FRIC]
+            ffd = m[_M_FF_DUTY]
         if f[_F_FAULTS]:
             mode = IDLE
             c[MODE] = IDLE
@@ -244,7 +271,45 @@ class Controller:
             if mode == OPEN_LOOP:
                 cmd = ((c[TARGET] + _B29) & _M30) - _B29
             elif mode == POSITION:
-                cmd = int(self._pi_update((((c[TARGET] + _B29) & _M30) - _B29) - d2, p[P_KP_POS], p[P_KI_POS], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
+                # With the block's friction calibrated, the spring must push with at least that
+                # force before the block moves at all; below it the PI alone leaves the block
+                # stuck short of the target while the integral creeps (1.1 N of friction: 60-80 um
+                # short for seconds). So outside a small deadband the duty that holds the spring at
+                # the friction force is added in the direction of the (filtered) error, and inside
+                # it the loop neither pushes nor integrates: the block stays where friction holds
+                # it, and noise cannot walk the integral into a limit cycle.
+                e = (((c[TARGET] + _B29) & _M30) - _B29) - d2
+                ef = ((c[EF] + _B29) & _M30) - _B29
+                ef = ef + ((e - ef) >> 4)
+                c[EF] = ef
+                ki = p[P_KI_POS]
+                ff = 0
+                if ffd:
+                    # Parked once the filtered error has stayed inside the deadband for PARK_STEPS
+                    # (a block passing through the target at speed is not parked, or it coasts
+                    # on past it), unparked only when it leaves three times that, so that noise at
+                    # the edge cannot toggle the push. Inside the band the push is off.
+                    db = p[P_POS_DEADBAND]
+                    aef = ef if ef >= 0 else -ef
+                    inside = c[PARKED]
+                    if inside >= _PARK_STEPS:
+                        if aef > 3 * db:
+                            inside = 0
+                    elif aef <= db:
+                        inside = inside + 1
+                    else:
+                        inside = 0
+                    c[PARKED] = inside
+                    if inside >= _PARK_STEPS:
+                        ki = 0
+                    elif aef > db:
+                        ff = ffd if ef > 0 else -ffd
+                lim = p[P_OUT_LIMIT]
+                cmd = int(self._pi_update(e, p[P_KP_POS], ki, lim, p[P_INT_LIMIT])) + ff
+                if cmd > lim:
+                    cmd = lim
+                elif cmd < -lim:
+                    cmd = -lim
             else:
                 # With the block's friction h calibrated, the load's force only moves once the
                 # spring force leaves a band 2h wide around it: to lower it the spring works from
@@ -278,15 +343,17 @@ class Controller:
                 c[DEFL_SP] = sp
                 cmd = int(self._pi_update(sp - defl, p[P_KP_FORCE], p[P_KI_FORCE], p[P_OUT_LIMIT], p[P_INT_LIMIT]))
             if has_meas:
-                # Soft stroke limits: toward an end, |duty| is capped at DUTY_MAX * room /
-                # slow_zone_um, so a fast approach slows over the last slow_zone_um and stops at
-                # the limit, while a smaller command (a loop holding a target inside the zone)
-                # passes unchanged.
+                # Soft stroke limits on the block's position (apply_params: the parameters, kept
+                # off the calibrated end stops): toward an end, |duty| is capped at DUTY_MAX *
+                # room / slow_zone_um, so a fast approach slows over the last slow_zone_um and
+                # stops at the limit, while a smaller command (a loop holding a target inside the
+                # zone) passes unchanged. The nut needs no limit of its own: it moves inside the
+                # block's cavity.
                 room = 1
                 if cmd > 0:
-                    room = (((p[P_STROKE_MAX] + _B29) & _M30) - _B29) - (d1 if d1 > d2 else d2)
+                    room = (((c[LIM_HI] + _B29) & _M30) - _B29) - d2
                 elif cmd < 0:
-                    room = (d1 if d1 < d2 else d2) - (((p[P_STROKE_MIN] + _B29) & _M30) - _B29)
+                    room = d2 - (((c[LIM_LO] + _B29) & _M30) - _B29)
                 if room <= 0:
                     cmd = 0
                 elif room < p[P_SLOW_ZONE]:

@@ -3,7 +3,7 @@
     D1 = conv(pot1 code)   D2 = conv(pot2 code)       (bcm3 or pwl, per pot, from the calibration)
     D1* = D1 - Df_hat(D1)                             (poly, when the Df step was calibrated)
     d = D1* - D2                                      (um)
-    F = F0(d) + h * s                                 (poly, mN, when the force step was calibrated)
+    F = F0(d) + h * s                                 (poly or pwl table, mN, when the force step was calibrated)
 
 F is the force the load feels. Without a `friction` section it is the spring force F0(d). With
 one (h, the output block's Coulomb friction, mN), the block sits between the spring and the load
@@ -27,7 +27,7 @@ from firmware.poly_fixed import poly
 from array import array
 
 from firmware.portable import const, ptr16, ptr32, zeros
-from firmware.pwl_fixed import pwl
+from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -59,7 +59,9 @@ TABLES = const(11)  # 1 when D1* and D2 come from the per-code tables
 LAST_CODE = const(12)  # the highest ADC code, 2**adc_bits - 1
 BASE1 = const(13)  # the tables hold D - BASE as uint16
 BASE2 = const(14)
-WORDS = const(15)
+FF_DUTY = const(15)  # the duty that holds the spring at the friction force (0: no feed-forward)
+F_IN = const(16)  # added to d before F0 is evaluated: 0 for a polynomial, FORCE_PWL_OFFSET for a table
+WORDS = const(17)
 TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
 
@@ -74,6 +76,21 @@ def _clamp_um(x):
 def adc_bits_of(kind, k):
     """The ADC width a pot's constants were exported for (their input shift says it)."""
     return (29 if kind == "bcm3" else 16) - k[1 if kind == "pwl" else 0]
+
+
+def board_problem(calibration, board):
+    """Why `calibration` cannot be used on `board` (a board file's dict), or None: it was made
+    for another board, or for another ADC width. Checked before a Measurement is made from it:
+    that evaluates every code of the width a pot's constants declare, and a bcm3 with input
+    shift 0 declares 29 bits (2**29 codes: hours on a Cortex-M0, the board silent meanwhile)."""
+    made_for = getattr(calibration, "board", None)
+    if made_for is not None and made_for != board["name"]:
+        return "calibration made for board %s, this board is %s" % (made_for, board["name"])
+    for name, (kind, k) in (("pot1", calibration.pot1), ("pot2", calibration.pot2)):
+        bits = adc_bits_of(kind, k)
+        if bits != board["adc_bits"]:
+            return "calibration made for a %d-bit ADC (%s), this board's is %d-bit" % (bits, name, board["adc_bits"])
+    return None
 
 
 def _converter(kind):
@@ -99,10 +116,19 @@ class Measurement:
         self.k_df = calibration.df
         self.k_force = calibration.force
         self.k_force_inv = calibration.force_inverse
-        fr = getattr(calibration, "friction", None)  # [h mN] or None
+        # F0(d) and d(F0): polynomials, or tables (a spring pair whose preload ends inside the
+        # force range changes stiffness at a point, which no low-order polynomial follows)
+        table = getattr(calibration, "force_kind", "poly") == "pwl"
+        self.force_eval = pwl if table else poly
+        inv_table = getattr(calibration, "force_inverse_kind", "poly") == "pwl"
+        self.inverse_eval = pwl if inv_table else poly
+        self.inverse_in = FORCE_PWL_OFFSET if inv_table else 0
+        fr = getattr(calibration, "friction", None)  # [h mN], [h mN, ff duty] or None
         st = zeros(WORDS)
         self.st = st
         st[FRIC] = fr[0] if fr is not None else 0
+        st[FF_DUTY] = fr[1] if fr is not None and len(fr) > 1 else 0
+        st[F_IN] = FORCE_PWL_OFFSET if table else 0
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
         st[LAST_CODE] = (1 << self.adc_bits) - 1
@@ -250,7 +276,7 @@ class Measurement:
         s[DEFL] = d1 - d2
         if not s[HAS_FORCE]:
             return
-        f = int(self.poly(d1 - d2, self.k_force))
+        f = int(self.force_eval(d1 - d2 + s[F_IN], self.k_force))
         s[FORCE] = int(self._play(f)) if s[FRIC] else f
 
     @micropython.viper
@@ -284,7 +310,7 @@ class Measurement:
 
     def deformation_for(self, force_mN):
         """Target deformation for a target spring force, through the fitted inverse d(F0)."""
-        return _clamp_um(self.poly(force_mN, self.k_force_inv))
+        return _clamp_um(self.inverse_eval(force_mN + self.inverse_in, self.k_force_inv))
 
     def deformation_targets(self, force_mN, out):
         """Fill out[s + 1] (s = -1, 0, +1) with the deformation that makes the load feel

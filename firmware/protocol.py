@@ -57,10 +57,12 @@ PARAMS = (
     ("host_timeout_ms", 1000, 0, 600000, "ms"),  # host silence that stops the motor (0 = off)
     ("rail_reads", 4, 1, 1000, "reads"),  # consecutive reads at a rail that make a fault
     ("rail_margin", 0, 0, 255, "codes"),  # codes from the rail that count as "at the rail"
-    ("stroke_min_um", 500, -65535, 65535, "um"),  # soft stroke limits on D1* and D2
+    ("stroke_min_um", 500, -65535, 65535, "um"),  # soft stroke limits on the block's position D2
     ("stroke_max_um", 59500, -65535, 65535, "um"),
     ("slow_zone_um", 5000, 1, 65535, "um"),  # |duty| toward a limit is capped, falling to 0 over this
     ("defl_rate_um", 2, 0, 65535, "um per step"),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
+    ("stop_margin_um", 300, -65535, 65535, "um"),  # the soft limits stay this far inside the calibrated end stops
+    ("pos_deadband_um", 8, 0, 20000, "um"),  # position mode with friction feed-forward: parked (no push, no integration) inside this, until 3x it
 )
 PARAM_NAMES = tuple(row[0] for row in PARAMS)
 
@@ -104,7 +106,7 @@ COMMANDS = (
     ("target", (("value", INT, REQUIRED),), "set_target", False),
     ("stream", (("state", ("on", "off"), REQUIRED), ("hz", INT, 1000)), "stream", False),
     ("get", (("param", PARAM_NAMES, REQUIRED),), "get_param", False),
-    ("set", (("param", PARAM_NAMES, REQUIRED), ("value", INT, REQUIRED)), "set_param", False),
+    ("set", (("param", PARAM_NAMES, REQUIRED), ("value", INT, REQUIRED), ("temp", ("temp",), False)), "set_param", False),
     ("params", (), "params", False),
     ("save", (), "save_params", False),
     ("heartbeat", (), "heartbeat", False),

@@ -25,6 +25,10 @@ try:
 except ImportError:  # CPython: the same decorator must still be valid, as an identity
     from firmware import portable as micropython
 
+# A force table (F0(d) or d(F0)) takes a signed input (d in um, F0 in mN) plus this, so that its
+# knot "codes" lie in 0..2**16 like an ADC table's, with input shift 0.
+FORCE_PWL_OFFSET = 32768
+
 _B29 = const(536870912)  # sign fix of a knot value (see firmware/bcm_fixed.py)
 _M30 = const(1073741823)
 

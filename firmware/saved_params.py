@@ -9,7 +9,8 @@ File format (text, written only by `save`, read at boot by `load`):
 
 `crc` is the CRC32 of every byte before its line. A file is used whole or not at all: a bad
 CRC, an unknown name or a value outside the table's range refuses it (with the reason), and the
-table's defaults stand. `save` writes PATH.new and renames it over PATH; where the filesystem
+table's defaults stand. `save` writes PATH.new, reads it back as the boot would (refusing a
+save whose file does not give the values back, PATH untouched) and renames it over PATH; where the filesystem
 cannot rename onto an existing file (FAT), PATH is removed first, and `load` then takes a
 complete PATH.new when PATH is missing, so a power cut at any moment leaves the old values or
 the new ones.
@@ -87,6 +88,14 @@ def save(path, table, values):
     with open(tmp, "w") as f:
         f.write(body)
         f.write("crc %08x\n" % (binascii.crc32(body.encode()) & 0xFFFFFFFF))
+    with open(tmp) as f:  # read back as the next boot will, before it replaces the file in use
+        try:
+            got = _parse(f.read(4096), table)
+        except ValueError as exc:
+            got = str(exc)
+    if got != dict((i, values[i]) for i in range(len(table))):
+        os.remove(tmp)
+        raise ValueError("%s did not read back as written (%s): the saved parameters are unchanged" % (tmp, got))
     try:
         os.rename(tmp, path)
     except OSError:  # FAT cannot rename onto an existing file

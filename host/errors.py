@@ -9,13 +9,32 @@ class UserError(Exception):
     """An error caused by input or environment, with a message that says what to do."""
 
 
+def _installed_from():
+    """Where pip installed this package from when it was a local directory (PEP 610's
+    direct_url.json), else None (an index, a wheel file, or no record)."""
+    import json
+    from importlib import metadata
+    from urllib.parse import unquote, urlparse
+
+    try:
+        record = json.loads(metadata.distribution("lsea-kit").read_text("direct_url.json") or "{}")
+    except (metadata.PackageNotFoundError, ValueError):
+        return None
+    url = urlparse(record.get("url", ""))
+    return unquote(url.path) if url.scheme == "file" and "dir_info" in record else None
+
+
 def install_hint(extra=None):
-    """The command that installs what is missing, for the way this copy was installed: an
-    editable source checkout (pip install -e) or an installed package."""
+    """The command that installs what is missing, for the way this copy was installed: from a
+    source checkout (running from it, or installed editable), from a local directory (pip
+    install DIR), or from a package index."""
     from pathlib import Path
 
-    checkout = (Path(__file__).resolve().parent.parent / "pyproject.toml").is_file()
-    what = ".[%s]" % extra if extra else "."
-    if checkout:
-        return "pip install -e '%s'" % what
-    return "pip install 'lsea-kit%s'" % ("[%s]" % extra if extra else "")
+    what = "[%s]" % extra if extra else ""
+    tree = Path(__file__).resolve().parent.parent
+    if (tree / "pyproject.toml").is_file():  # the code runs from a source checkout
+        return "pip install -e '%s%s'" % (tree, what)
+    source = _installed_from()
+    if source is not None:
+        return "pip install '%s%s'" % (source, what)
+    return "pip install 'lsea-kit%s'" % what

@@ -30,9 +30,10 @@ def _world(board, seed):
     return Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), seed)
 
 
-def model_sections(board=None, n_points=61):
+def model_sections(board=None, n_points=61, feed_forward=False):
     """The sections pot1, pot2 (pwl tables), df, force, force_inverse and friction, each
-    {"kind", "fixed"} as the firmware reads them."""
+    {"kind", "fixed"} as the firmware reads them; with `feed_forward` the friction section also
+    holds the duty at which the stalled motor holds the spring at the friction force."""
     from host.calibration.fixed_export import export_poly, export_pwl
 
     board = board or sim_board()
@@ -60,7 +61,11 @@ def model_sections(board=None, n_points=61):
     f = np.array([world.spring_force(v) for v in d])
     out["force"] = _poly(export_poly(np.polyfit(d, f, 3), -cav, cav, 1000, 1000))
     out["force_inverse"] = _poly(export_poly(np.polyfit(f, d, 3), float(f.min()), float(f.max()), 1000, 1000))
-    out["friction"] = {"kind": "friction", "fixed": [int(round(float(board["actuator"]["block"]["coulomb_n"]) * 1000))]}
+    h = float(board["actuator"]["block"]["coulomb_n"])
+    out["friction"] = {"kind": "friction", "fixed": [int(round(h * 1000))]}  # the block's Coulomb, mN
+    if feed_forward:  # and the duty at which the stalled motor holds the spring at that force
+        stall_n = world.eta * world.kt * world.G * float(board["supply_volts"]) / world.R  # at full duty
+        out["friction"]["fixed"].append(int(round(h / (stall_n / 10000.0))))
     return out
 
 
@@ -100,7 +105,7 @@ def bcm3_sections(board, noisy=False, seed=1):
     return out
 
 
-def model_document(board=None, pots="pwl", date=DATE, **sections):
+def model_document(board=None, pots="pwl", date=DATE, feed_forward=False, **sections):
     """The calibration payload of the simulated actuator: pots "pwl" (tables) or "bcm3", dated
     `date` (two files of different dates differ in their CRC), then `sections` replaced (None
     removes one)."""
@@ -108,7 +113,7 @@ def model_document(board=None, pots="pwl", date=DATE, **sections):
 
     board = board or sim_board()
     doc = new_document(board=board["name"], date=date)
-    doc.update(model_sections(board))
+    doc.update(model_sections(board, feed_forward=feed_forward))
     if pots == "bcm3":
         doc.update(bcm3_sections(board))
     for name, section in sections.items():
@@ -119,12 +124,12 @@ def model_document(board=None, pots="pwl", date=DATE, **sections):
     return doc
 
 
-def write_model_calibration(path, board=None, pots="pwl", date=DATE, **sections):
+def write_model_calibration(path, board=None, pots="pwl", date=DATE, feed_forward=False, **sections):
     """Write the model calibration (model_document) to `path` with the real calibration-file
     code; returns the file's CRC."""
     from host.calibration.file import write_calibration
 
-    return write_calibration(path, model_document(board, pots, date, **sections))
+    return write_calibration(path, model_document(board, pots, date, feed_forward, **sections))
 
 
 def record_codes(board, steps, duty=3000, seed=7):
@@ -147,8 +152,10 @@ def write_replay_data(directory, steps=600, duty=3000, pots="pwl", board=None):
     """Record `steps` periods of ADC codes (record_codes) and write the calibration files the
     firmware cases boot with, into `directory`; returns the path of the data file (read by
     testkit.replay.load). Calibrations: "model" (model_document), "pots_only" (no Df, force or
-    friction), "other_board" (made for the pico) and, for pwl pots, "falling" (pot 2's table
-    with its positions reversed: falls as the code rises)."""
+    friction), "other_board" (made for the pico), "stroke_low_shifted" and "stroke_high_shifted"
+    (end stops at -2/58 and 1/61 mm), and for pwl pots "falling" (pot 2's table with its
+    positions reversed: falls as the code rises) and "narrow" (tables for a 10-bit ADC), for
+    bcm3 pots "wide" (input shift 0: a 29-bit ADC)."""
     from host.calibration.file import encode_document
 
     board = board or sim_board()
@@ -157,15 +164,23 @@ def write_replay_data(directory, steps=600, duty=3000, pots="pwl", board=None):
     doc = model_document(board, pots)
     variants = {"model": doc,
                 "pots_only": {k: v for k, v in doc.items() if k not in ("df", "force", "force_inverse", "friction")},
-                "other_board": dict(doc, board="pico")}
+                "other_board": dict(doc, board="pico"),
+                "stroke_low_shifted": dict(doc, stroke={"kind": "stroke", "fixed": [-2000, 58000]}),
+                "stroke_high_shifted": dict(doc, stroke={"kind": "stroke", "fixed": [1000, 61000]})}
     if doc["pot2"]["kind"] == "pwl":
         k = doc["pot2"]["fixed"]
         n = k[0]
         variants["falling"] = dict(doc, pot2={"kind": "pwl", "fixed": k[:2 + n] + list(reversed(k[2 + n:]))})
+        # input shift 6: tables for a 10-bit ADC
+        variants["narrow"] = dict(doc, **{p: {"kind": "pwl", "fixed": [doc[p]["fixed"][0], 6] + doc[p]["fixed"][2:]}
+                                          for p in ("pot1", "pot2")})
+    else:  # input shift 0: a bcm3 that declares 29 bits
+        variants["wide"] = dict(doc, **{p: {"kind": "bcm3", "fixed": [0] + doc[p]["fixed"][1:]} for p in ("pot1", "pot2")})
     paths = {}
     for name, body in variants.items():
         path = directory / ("%s-%s.json" % (pots, name))
-        path.write_text(encode_document(body, check=name != "falling"))  # "falling" passes only the layout checks
+        # the board's own refusals (falling, another ADC width) come after the file's layout checks
+        path.write_text(encode_document(body, check=name not in ("falling", "narrow", "wide")))
         paths[name] = str(path)
     data = directory / ("%s-data.json" % pots)
     data.write_text(json.dumps({"codes": record_codes(board, steps, duty), "calibrations": paths}))

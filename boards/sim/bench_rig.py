@@ -7,12 +7,15 @@ and `poll(world)`, called from `machine.idle()` outside the control step, applie
 
     {"reference": "pot1" | "pot2",
      "load": {"kind": "none" | "gauge" | "constant", "anchor_mm": 45.0, "side": "high" | "low",
-              "force_n": 0.0},
+              "gap_mm": 1.5, "force_n": 0.0},
      "fault": null | {"channel": "pot1", "kind": "wiper_lift", "rail": "high"}}
 
 (load: anchor_mm where the gauge's fibre goes taut, default the board file's, and the gauge's
-side, see Actuator.set_load; force_n of a constant load, + toward the 60 mm end. `host sim --load`
-and `--port sim --load` write it too.)
+side, see Actuator.set_load; or, with gap_mm, the fibre hooked as a person hooks it, slack by
+gap_mm from where the block is when it is hooked (the person sees the block, not its true
+position: the anchor follows from the block's place, not from a number in mm); force_n of a
+constant load, + toward the 60 mm end. `host sim --load` and `--port sim --load` write it too.
+A load is applied when it changes, not when another part of the rig does.)
 
 While the gauge is hooked, the rig also plays the gauge's display: `gauge.json` holds its reading
 in newtons (from the gauge's own ADC channel: noise, quantisation and zero drift included) and the
@@ -35,6 +38,7 @@ _last_poll = None
 _last_text = None
 _last_world = None
 _gauge_on = False
+_last_load = None  # the load last applied, as text
 
 try:
     _ms = time.ticks_ms
@@ -50,23 +54,31 @@ except AttributeError:  # CPython
 
 def reset():
     """Forget what was applied (a new world was built)."""
-    global _last_poll, _last_text, _gauge_on
+    global _last_poll, _last_text, _gauge_on, _last_load
     _last_poll = None
     _last_text = None
     _gauge_on = False
+    _last_load = None
+_last_load = None  # the load last applied, as text
 
 
 def apply(world, rig):
     """Apply one rig description (a dict like rig.json) to the Actuator `world`."""
-    global _gauge_on
+    global _gauge_on, _last_load
     ref = rig.get("reference")
     if ref:
         world.set_reference(ref)
     load = rig.get("load")
-    if load is not None:
+    key = None if load is None else json.dumps(load)
+    if load is not None and key != _last_load:
+        _last_load = key
         kind = load.get("kind", "none")
-        world.set_load(kind, anchor_mm=load.get("anchor_mm"), side=load.get("side", "high"),
-                       force_n=float(load.get("force_n", 0.0)))
+        side = load.get("side", "high")
+        anchor = load.get("anchor_mm")
+        if kind == "gauge" and load.get("gap_mm") is not None:
+            gap = float(load["gap_mm"])  # high side: taut below the anchor, so it sits gap below the block
+            anchor = world.block_mm - gap if side == "high" else world.block_mm + gap
+        world.set_load(kind, anchor_mm=anchor, side=side, force_n=float(load.get("force_n", 0.0)))
         _gauge_on = kind == "gauge"
     if "fault" in rig:
         world.clear_faults()

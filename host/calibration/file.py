@@ -28,17 +28,19 @@ from firmware.calibration import (
     POLY_SECTIONS,
     POT_SECTIONS,
     SCHEMA,
+    STROKE_SECTION,
     CalibrationError,
     friction_constants,
     parse_document,
     payload_crc,
     poly_constants,
     pot_constants,
+    stroke_constants,
 )
 from host.errors import UserError
-from host.calibration.fixed_export import export_poly, export_pot
+from host.calibration.fixed_export import export_force_table, export_poly, export_pot
 
-SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION,)
+SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION)
 INFO_KEYS = ("board", "date", "pots")
 
 
@@ -79,6 +81,7 @@ def check_sections(doc):
         for name in POLY_SECTIONS:
             poly_constants(doc.get(name), name)
         friction_constants(doc.get(FRICTION_SECTION))
+        stroke_constants(doc.get(STROKE_SECTION))
     except CalibrationError as e:
         raise UserError(str(e)) from None
 
@@ -233,7 +236,43 @@ def poly_section(coeffs_high_first, x_range, in_scale, out_scale, units, stats=N
     }
 
 
-def friction_section(friction_n, stats=None):
-    """The output block's Coulomb friction (N, >= 0) for the firmware's load-force estimate."""
-    return {"kind": "friction", "friction_n": float(friction_n), "fit": stats or {},
-            "fixed": [int(round(max(0.0, friction_n) * 1000.0))]}
+def force_table_section(knots_in, knots_out, in_range, units, stats=None):
+    """A force section as a table (F0(d) or d(F0)): knots in natural units (mm, N), `units` as
+    for poly_section."""
+    try:
+        fixed = export_force_table(knots_in, knots_out, in_range)
+    except ValueError as e:
+        raise UserError("cannot export the force table for the firmware: %s" % e) from None
+    return {
+        "kind": "pwl",
+        "knots_in": [float(v) for v in knots_in],
+        "knots_out": [float(v) for v in knots_out],
+        "in_range": [float(in_range[0]), float(in_range[1])],
+        "units": list(units),
+        "fit": stats or {},
+        "fixed": list(fixed),
+        "fixed_check": fixed.report(),
+    }
+
+
+def friction_section(friction_n, stats=None, ff_duty=0):
+    """The output block's Coulomb friction (N, >= 0) for the firmware's load-force estimate, and
+    with `ff_duty` the duty that holds the spring at that force (position control's feed-forward)."""
+    fixed = [int(round(max(0.0, friction_n) * 1000.0))]
+    if ff_duty:
+        fixed.append(int(ff_duty))
+    return {"kind": "friction", "friction_n": float(friction_n), "feed_forward_duty": int(ff_duty), "fit": stats or {},
+            "fixed": fixed}
+
+
+def stroke_section(low_mm, high_mm, stats=None):
+    """Where the output block's end stops are in its calibrated position D2 (mm): the firmware
+    keeps its soft stroke limits `stop_margin_um` inside them."""
+    low, high = int(round(low_mm * 1000.0)), int(round(high_mm * 1000.0))
+    section = {"kind": "stroke", "end_stops_mm": [float(low_mm), float(high_mm)], "fit": stats or {},
+               "fixed": [low, high]}
+    try:
+        stroke_constants(section)
+    except CalibrationError as e:
+        raise UserError(str(e)) from None
+    return section

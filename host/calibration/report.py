@@ -10,12 +10,15 @@ from firmware.calibration import (
     FRICTION_SECTION,
     POLY_SECTIONS,
     POT_SECTIONS,
+    STROKE_SECTION,
     convert,
     friction_constants,
     poly_constants,
     pot_constants,
+    stroke_constants,
 )
 from firmware.poly_fixed import poly
+from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 
 POLY_NAMES = {"df": "Df_hat(D1), assembly error", "force": "F0(d), force of the spring deformation",
               "force_inverse": "d(F0), deformation for a force target"}
@@ -32,9 +35,21 @@ def pot_positions_um(section, name):
     return np.array([convert(kind, code, k) for code in range(1 << bits)], dtype=float)
 
 
+def _is_table(section):
+    return isinstance(section, dict) and section.get("kind") == "pwl"
+
+
 def _poly_inputs(section, name):
+    """(k, inputs): the section's words and 1001 inputs over its range (a force table's inputs
+    are in the section's own units, without FORCE_PWL_OFFSET)."""
     k = poly_constants(section, name)
-    return k, np.unique(np.linspace(k[2], k[3], 1001).round().astype(int))
+    lo, hi = (k[2] - FORCE_PWL_OFFSET, k[1 + k[0]] - FORCE_PWL_OFFSET) if _is_table(section) else (k[2], k[3])
+    return k, np.unique(np.linspace(lo, hi, 1001).round().astype(int))
+
+
+def evaluate(section, k, x):
+    """What the board computes for a polynomial or force-table section at integer input x."""
+    return pwl(int(x) + FORCE_PWL_OFFSET, k) if _is_table(section) else poly(int(x), k)
 
 
 def describe_pot(section, name):
@@ -61,10 +76,10 @@ def describe_poly(section, name):
     k, x = _poly_inputs(section, name)
     units = section.get("units") or ["in", "out"]
     coeffs = section.get("coefficients") or []
-    y = np.array([poly(int(v), k) for v in x])
-    lines = ["%s: %s, degree %d over %s..%s %s -> %s..%s %s" % (
-        name, POLY_NAMES.get(name, "polynomial"), len(coeffs) - 1 if coeffs else k[0],
-        k[2], k[3], units[0], int(y.min()), int(y.max()), units[1])]
+    y = np.array([evaluate(section, k, v) for v in x])
+    shape = "a %d-knot table" % k[0] if _is_table(section) else "degree %d" % (len(coeffs) - 1 if coeffs else k[0])
+    lines = ["%s: %s, %s over %s..%s %s -> %s..%s %s" % (
+        name, POLY_NAMES.get(name, "polynomial"), shape, x[0], x[-1], units[0], int(y.min()), int(y.max()), units[1])]
     fit = {key: v for key, v in (section.get("fit") or {}).items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
     if fit:
         lines.append("  fit: " + ", ".join("%s %s" % (key, _num(v)) for key, v in sorted(fit.items())[:8]))
@@ -82,10 +97,17 @@ def describe(doc, crc=None):
     for name in POLY_SECTIONS:
         lines += describe_poly(doc[name], name) if doc.get(name) else ["%s: none" % name]
     if doc.get(FRICTION_SECTION):
-        h = friction_constants(doc[FRICTION_SECTION])[0]
-        lines.append("friction: %.3f N (the output block's Coulomb friction, compensated)" % (h / 1000.0))
+        k = friction_constants(doc[FRICTION_SECTION])
+        lines.append("friction: %.3f N (the output block's Coulomb friction, compensated)%s" % (
+            k[0] / 1000.0, "; position control adds %d duty to break the block free" % k[1] if len(k) > 1 else ""))
     else:
         lines.append("friction: none (not compensated)")
+    if doc.get(STROKE_SECTION):
+        lo, hi = stroke_constants(doc[STROKE_SECTION])
+        lines.append("end stops: %.3f and %.3f mm of D2 (stroke %.3f mm; the soft limits stay a margin inside)"
+                     % (lo / 1000.0, hi / 1000.0, (hi - lo) / 1000.0))
+    else:
+        lines.append("end stops: not measured (the soft limits are the stroke_min_um/stroke_max_um parameters alone)")
     return lines
 
 
@@ -96,7 +118,7 @@ def compare(a, b):
     for key in ("board", "date", "pots"):
         if a.get(key) != b.get(key):
             lines.append("%s: %s | %s" % (key, a.get(key), b.get(key)))
-    for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION,):
+    for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION):
         sa, sb = a.get(name), b.get(name)
         if not sa and not sb:
             continue
@@ -116,15 +138,18 @@ def compare(a, b):
                 name, sa.get("model", sa["kind"]), sb.get("model", sb["kind"]), diff[worst], worst, np.sqrt(np.mean(diff**2))))
         elif name in POLY_SECTIONS:
             ka, xa = _poly_inputs(sa, name)
-            kb, _ = _poly_inputs(sb, name)
-            x = xa[(xa >= max(ka[2], kb[2])) & (xa <= min(ka[3], kb[3]))]
+            kb, xb = _poly_inputs(sb, name)
+            x = xa[(xa >= max(xa[0], xb[0])) & (xa <= min(xa[-1], xb[-1]))]
             units = (sa.get("units") or ["", ""])[1]
             if len(x):
-                diff = np.abs(np.array([poly(int(v), ka) - poly(int(v), kb) for v in x], dtype=float))
+                diff = np.abs(np.array([evaluate(sa, ka, v) - evaluate(sb, kb, v) for v in x], dtype=float))
                 lines.append("%s: differs by %.0f %s at most over the common inputs %d..%d" % (name, diff.max(), units, x[0], x[-1]))
             else:
                 lines.append("%s: the input ranges do not overlap" % name)
-        else:
+        elif name == FRICTION_SECTION:
             fa, fb = friction_constants(sa)[0], friction_constants(sb)[0]
             lines.append("friction: %.3f N | %.3f N" % (fa / 1000.0, fb / 1000.0))
+        else:
+            (la, ha), (lb, hb) = stroke_constants(sa), stroke_constants(sb)
+            lines.append("end stops: %.3f..%.3f mm | %.3f..%.3f mm" % (la / 1000.0, ha / 1000.0, lb / 1000.0, hb / 1000.0))
     return lines + ["the same calibration"] if len(lines) == same else lines

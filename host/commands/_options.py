@@ -52,3 +52,16 @@ def add_port_arguments(parser):
     parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
     parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
     add_load_argument(parser)
+
+
+def live_arguments(parser, with_log=True):
+    """--live (and for a motion command --log FILE and --rate) on a command's parser."""
+    if with_log:
+        parser.add_argument("--log", default=None, metavar="FILE.csv",
+                            help="record the board's telemetry to this CSV while the command runs (same connection; "
+                            "RUN.meta.json beside it)")
+        parser.add_argument("--rate", type=ranged(int, 1, 1000), default=1000, metavar="HZ",
+                            help="--log: telemetry rate, Hz (default 1000)")
+    parser.add_argument("--live", action="store_true",
+                        help="plot positions, deformation, force, duty and target in a window as they come (10 times a "
+                        "second); without a display, a PNG of the run beside the CSV at the end")

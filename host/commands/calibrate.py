@@ -4,7 +4,8 @@ from pathlib import Path
 
 from host.commands._options import ranged
 from host.errors import UserError
-from host.guided.flow import BRINGUP, Options, STEPS, bringup_done, run_steps
+from host.fitting.models import MODELS
+from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
 
 
 def add_parser(subparsers):
@@ -34,8 +35,11 @@ def add_parser(subparsers):
     add_gauge_arguments(p)
     p.add_argument("--duty", type=ranged(int, 100, 10000), default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
     p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
-    p.add_argument("--levels", type=ranged(int, 2, 50), default=8, help="force: duty steps per loading (default 8)")
-    p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=5000, help="force: largest open-loop duty (default 5000: ~17 N)")
+    p.add_argument("--levels", type=ranged(int, 2, 50), default=8, help="force: loading steps of 5000/N duty each (default 8: 625), "
+                   "taken until the gauge reads --force-range")
+    p.add_argument("--force-range", type=ranged(float, 1, 100), default=16.0, metavar="N",
+                   help="force: load until the gauge reads this many newtons (default 16: the paper's forces reach 15 N)")
+    p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=9000, help="force: largest open-loop duty (default 9000)")
     p.add_argument("--anchor-mm", type=ranged(float, 0, 60), default=45.0, help="force: where the fibre goes taut, mm (default 45)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
     p.add_argument("--fix", action="store_true", help="bringup: write and flash a corrected board file without asking")
@@ -51,7 +55,7 @@ def add_method_arguments(p):
                    help="the paper's method: BCM-3 pots, a quartic Df, quadratic force fits without friction, gauge "
                    "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
                    "--gauge-sides high --no-friction, and it overrides those options)")
-    p.add_argument("--model", default="auto", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
+    p.add_argument("--model", default="auto", choices=list(MODELS) + ["auto"], metavar="MODEL", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
@@ -118,12 +122,13 @@ def options_from(args):
         raise UserError("--duty must be within 100..6000")
     return Options(out=out, out_dir=plots, reference=args.reference, manual_points=args.manual_points,
                    duty=args.duty, anchor_mm=args.anchor_mm, rounds=max(1, args.rounds),
-                   levels=max(3, args.levels), max_duty=args.max_duty, flash=not args.no_flash, fix=args.fix,
+                   levels=max(3, args.levels), max_duty=args.max_duty, force_range=args.force_range, flash=not args.no_flash, fix=args.fix,
                    **method_options(args))
 
 
-def calibrate(args, say=print, ask=None):
-    """Run the requested steps; returns {step: StepOutcome} (used by host experiment too)."""
+def calibrate(args, say=print, ask=None, log=None):
+    """Run the requested steps; returns {step: StepOutcome} (used by host experiment too). `log`
+    (host.guided.run_log.RunLog) records each step's results as it finishes."""
     from host.guided.prompts import Prompter
     from host.guided.rig import reference_scale
     from host.guided.session import Session
@@ -142,10 +147,30 @@ def calibrate(args, say=print, ask=None):
         if ("pots" in steps or BRINGUP in steps) and opts.reference == "adc":
             opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
         rig = make_rig(args, prompter, session)
-        return run_steps(session, rig, prompter, steps, opts)
+        if log:
+            log.results["board"] = session.board["name"]
+        return run_steps(session, rig, prompter, steps, opts, log=log)
 
 
 def run(args):
-    accepted = calibrate(args)
-    print("calibration %s: %s accepted" % (args.out, ", ".join(accepted) or "nothing"))
+    import sys
+
+    from host.guided.run_log import RunLog
+
+    log = RunLog(args.out, "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host calibrate")
+    try:
+        accepted = calibrate(args, log=log)
+    except StepRefused as exc:  # a verdict: said in the log, then the usual one line and status 2
+        log.stop(str(exc))
+        raise
+    except (Exception, KeyboardInterrupt) as exc:
+        if not log.measured:  # nothing measured yet (no board, a bad option): the usual one line
+            raise
+        why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        log.stop(why)
+        print("error: the calibration stopped during %s: %s; what it measured is in %s and %s" % (
+            log.results["phase"], why, log.json_path, log.report_path), file=sys.stderr)
+        return 1
+    log.finish()
+    print("calibration %s: %s accepted (results: %s)" % (args.out, ", ".join(accepted) or "nothing", log.report_path))
     return 0 if accepted else 1

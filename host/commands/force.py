@@ -1,11 +1,9 @@
-"""`host force --target N`: closed-loop force (spring deformation) control, then motor off."""
+"""`host force --target N`: closed-loop force (spring deformation) control, then motor off; --log
+records it over the same connection, --live plots it as it comes."""
 
-from host.commands._options import add_port_arguments, ranged
+from host.commands._options import add_port_arguments, live_arguments, ranged
+from host.commands.move import report, run_motion
 from host.errors import UserError
-from host.guided.acquire import settle
-from host.link.board_client import BoardError
-from host.link.connect import open_board
-from host.terminal import end_progress, progress_line
 
 
 def add_parser(subparsers):
@@ -20,44 +18,24 @@ def add_parser(subparsers):
     p.add_argument("--tolerance", type=ranged(float, 0.001, 100), default=0.1, metavar="N", help="settled when within this, N (default 0.1)")
     p.add_argument("--timeout", type=ranged(float, 0.1, 3600), default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave force mode on at the end (until the host timeout)")
+    live_arguments(p)
+    p.add_argument("--json", action="store_true", help="print the outcome as JSON (also when it did not settle)")
     p.set_defaults(func=run)
 
 
-def _stroke_end(board, d2_um):
-    """'0 mm' or '60 mm' when D2 is inside the soft stroke limit's slow zone at that end, else None."""
-    try:
-        lo, hi, zone = (board.call("get", name) for name in ("stroke_min_um", "stroke_max_um", "slow_zone_um"))
-    except BoardError:  # a firmware without soft stroke limits
-        return None
-    if d2_um <= lo + zone:
-        return "0 mm"
-    if d2_um >= hi - zone:
-        return "60 mm"
-    return None
-
-
 def run(args):
-    target = int(round(args.target * 1000))
-
-    def progress(value, seconds):
-        progress_line("%6.2f s  F %8.3f N  (target %.3f N)" % (seconds, value / 1000, args.target), every=1.0)
-
-    last = {}
-    with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
-        try:
-            ok, value, seconds = settle(board, "force", target, "force_mN", int(args.tolerance * 1000), args.timeout,
-                                        progress=progress, last=last)
-        finally:
-            if not args.hold:
-                board.call("stop")
-        end_progress()
-        end = _stroke_end(board, last["d2_um"]) if last and not ok else None
-    if value is None:
+    outcome, summary, png = run_motion(
+        args, lambda board, progress: board.force(args.target, args.tolerance, args.timeout, args.hold, progress),
+        "N (F0)")
+    if outcome.value is None:
         raise UserError("no telemetry from the board during the force run")
-    if not ok:
+    if not outcome.reached and not args.json:
+        end = outcome.stroke_end
         why = ("the block ran to D2 = %.1f mm, at the %s stroke end: nothing to push against? hook a load "
-               "(--port sim: --load gauge)" % (last["d2_um"] / 1000, end)) if end else \
+               "(--port sim: --load gauge)" % (outcome.last["d2_um"] / 1000, end)) if end else \
               "try a longer --timeout or a wider --tolerance"
-        raise UserError("force did not settle: %.3f N after %.1f s (target %.3f N); %s" % (value / 1000, seconds, args.target, why))
-    print("reached at %.3f N (target %.3f N) after %.2f s" % (value / 1000, args.target, seconds))
-    return 0
+        raise UserError("force did not settle: %.3f N after %.1f s (target %.3f N); %s" % (
+            outcome.value, outcome.seconds, args.target, why))
+    report(args, outcome, summary, png, "reached at %.3f N (target %.3f N) after %.2f s" % (
+        outcome.value, args.target, outcome.seconds))
+    return 0 if outcome.reached else 1

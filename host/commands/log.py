@@ -1,46 +1,44 @@
-"""`host log`: stream telemetry to a CSV file with progress; Ctrl-C ends it with a complete file."""
+"""`host log`: stream telemetry to a CSV file with progress, optionally watched live; Ctrl-C ends
+it with a complete file."""
 
 import sys
 
-from host.commands._options import add_port_arguments, ranged
-from host.errors import UserError
-from host.link.connect import open_board
-from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path, record
+from host.api import Board
+from host.commands._options import add_port_arguments, live_arguments, ranged
+from host.link.live_view import watched
+from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path
 from host.terminal import end_progress, progress_line
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("log", help="record telemetry to CSV (Ctrl-C ends cleanly)",
+    p = subparsers.add_parser("log", help="record telemetry to CSV (Ctrl-C ends cleanly); --live plots it as it comes",
                               description="Stream the board's telemetry records into a CSV file, one column per "
                               "field, with progress (samples, rate, lost frames). Ctrl-C ends it with a complete file. "
                               "A board without calibration sends 0 for positions, deformation and force (it warns "
-                              "once); the raw ADC codes are always logged.")
+                              "once); the raw ADC codes are always logged. --live shows the run in a window as it "
+                              "comes (closing it ends the log); without a display, a PNG of the run at the end.")
     add_port_arguments(p)
     p.add_argument("--out", required=True, help="CSV file to write (columns: firmware.telemetry.FIELDS)")
     p.add_argument("--seconds", type=ranged(float, 0.001, 86400), default=None, help="stop after this long (default: until Ctrl-C)")
     p.add_argument("--rate", type=ranged(int, 1, 1000), default=1000, metavar="HZ", help="telemetry rate, Hz (default 1000, at most the board's loop rate)")
+    live_arguments(p, with_log=False)
     p.set_defaults(func=run)
 
 
 def run(args):
-    if args.rate <= 0:
-        raise UserError("--rate must be > 0")
-    if args.seconds is not None and args.seconds <= 0:
-        raise UserError("--seconds must be > 0")
-
     def progress(s):
         progress_line("%8d samples  %7.1f/s  lost frames %d  board drops %d" % (s.samples, s.rate, s.lost_frames, s.board_dropped), every=1.0)
 
-    with open_board(args.port, args.board, args.calibration, args.load) as board:
-        status = board.status_info or {}
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load) as board:
+        status = board.client.status_info or {}
         if status.get("calibration_crc") is None:
             print("warning: the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, "
                   "raw_ref) are logged" % (status.get("calibration_error"), ", ".join(CALIBRATED_FIELDS)), file=sys.stderr)
-        try:
-            summary = record(board, args.out, args.seconds, args.rate, progress=progress)
-        except KeyboardInterrupt:
-            raise
+        _, summary, png = watched(board, args.out, args.rate, args.live,
+                                  lambda recording: recording.pump(args.seconds, progress), close_stops=True)
     end_progress()
     print("%s: %s" % (args.out, summary.line()))
     print("metadata (board, firmware, calibration CRC, units, mode and fault codes): %s" % metadata_path(args.out))
+    if png:
+        print("plot: %s" % png)
     return 0

@@ -1,9 +1,12 @@
-"""`host move --to MM`: closed-loop position move of the output block, then motor off."""
+"""`host move --to MM`: closed-loop position move of the output block, then motor off; --log
+records the move's telemetry over the same connection, --live plots it as it comes."""
 
-from host.commands._options import add_port_arguments, ranged
+import json
+
+from host.api import Board
+from host.commands._options import add_port_arguments, live_arguments, ranged
 from host.errors import UserError
-from host.guided.acquire import settle
-from host.link.connect import open_board
+from host.link.live_view import watched
 from host.terminal import end_progress, progress_line
 
 
@@ -15,27 +18,55 @@ def add_parser(subparsers):
     p.add_argument("--timeout", type=ranged(float, 0.1, 3600), default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave position mode on at the end (the firmware stops the motor "
                    "once heartbeats stop, after host_timeout_ms)")
+    live_arguments(p)
+    p.add_argument("--json", action="store_true", help="print the outcome as JSON")
     p.set_defaults(func=run)
+
+
+def run_motion(args, motion, unit):
+    """Open the board and run `motion(board_or_recording, progress)` -> Settled, logged and
+    watched as --log/--live ask; the progress line shows the value in `unit`. Returns
+    (Settled, the log's summary or None, the PNG or None)."""
+    if args.live and not args.log:
+        raise UserError("--live needs --log FILE.csv (the run is recorded while it is shown)")
+
+    def progress(value, seconds):
+        progress_line("%6.2f s  %8.3f %s" % (seconds, value, unit), every=1.0)
+
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, require_calibration=True,
+               stop_on_exit=not args.hold) as board:
+        if args.log:
+            outcome, summary, png = watched(board, args.log, args.rate, args.live, lambda _: motion(board, progress))
+        else:
+            outcome, summary, png = motion(board, progress), None, None
+        end_progress()
+    return outcome, summary, png
+
+
+def report(args, outcome, summary, png, text):
+    """Print the outcome (JSON with --json) and where the log went."""
+    if args.json:
+        out = outcome.as_dict()
+        if summary is not None:
+            out["log"] = {"csv": args.log, "samples": summary.samples, "lost_frames": summary.lost_frames,
+                          "board_dropped": summary.board_dropped, "png": None if png is None else str(png)}
+        print(json.dumps(out, indent=1))
+        return
+    print(text)
+    if summary is not None:
+        print("%s: %s" % (args.log, summary.line()))
+    if png:
+        print("plot: %s" % png)
 
 
 def run(args):
     if not 0.0 <= args.to <= 60.0:
         raise UserError("--to must be within the 0-60 mm stroke")
-    target = int(round(args.to * 1000))
-
-    def progress(value, seconds):
-        progress_line("%6.2f s  D2 %8.3f mm  (target %.3f mm)" % (seconds, value / 1000, args.to), every=1.0)
-
-    with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
-        try:
-            ok, value, seconds = settle(board, "position", target, "d2_um", int(args.tolerance * 1000), args.timeout, progress=progress)
-        finally:
-            if not args.hold:
-                board.call("stop")
-        end_progress()
-        status = board.call("status")
-    if value is None:
+    outcome, summary, png = run_motion(
+        args, lambda board, progress: board.move(args.to, args.tolerance, args.timeout, args.hold, progress), "mm (D2)")
+    if outcome.value is None:
         raise UserError("no telemetry from the board during the move")
-    print("%s at %.3f mm (target %.3f mm) after %.2f s%s" % ("reached" if ok else "NOT settled", value / 1000, args.to,
-          seconds, "; faults: " + ", ".join(status["faults"]) if status.get("faults") else ""))
-    return 0 if ok else 1
+    report(args, outcome, summary, png, "%s at %.3f mm (target %.3f mm) after %.2f s%s" % (
+        "reached" if outcome.reached else "NOT settled", outcome.value, args.to, outcome.seconds,
+        "; faults: " + ", ".join(outcome.faults) if outcome.faults else ""))
+    return 0 if outcome.reached else 1

@@ -2,9 +2,10 @@
 
 import json
 
+from host.api import Board
 from host.commands._options import add_port_arguments
-from host.link.connect import open_board
-from host.link.parameters import parse_items, read_table
+from host.errors import UserError
+from host.link.board_params import check_value
 
 
 def add_parser(subparsers):
@@ -23,6 +24,25 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
+def parse_items(items, table):
+    """(names to read, {name: value} to set) from NAME and NAME=VALUE words, checked against
+    the table; UserError names the first bad word."""
+    reads, sets = [], {}
+    for item in items:
+        name, eq, text = item.partition("=")
+        if name not in table:
+            raise UserError("unknown parameter %r (host params lists them: %s)" % (name, ", ".join(table)))
+        if not eq:
+            reads.append(name)
+            continue
+        try:
+            value = int(text.strip())
+        except ValueError:
+            raise UserError("%s=%s: the value must be a whole number (in %s)" % (name, text, table[name].unit)) from None
+        sets[name] = check_value(table, name, value)
+    return reads, sets
+
+
 def describe(table, saved=None):
     """The table as aligned lines for a person; `saved` ({name: value} or None) marks saved values."""
     saved = saved or {}
@@ -39,17 +59,16 @@ def describe(table, saved=None):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load) as board:
-        table = read_table(board)
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load) as board:
+        table = board.params()
         reads, sets = parse_items(args.items, table)  # all checked before anything is set
         if args.defaults:
-            sets = [(p.name, p.default) for p in table.values()] + sets
-        for name, value in sets:
-            board.call("set", name, value)
-        if sets:
-            table = read_table(board)
-        saved_result = board.call("save") if args.save else None
-        status = board.call("status")
+            sets = dict({p.name: p.default for p in table.values()}, **sets)
+        if sets or args.save:
+            table, saved_result = board.set_params(sets, save=args.save)
+        else:
+            saved_result = None
+        status = board.status()
     if reads:
         values = {name: table[name].value for name in reads}
         if args.json:
@@ -65,7 +84,7 @@ def run(args):
     if not sets or args.save or args.defaults:
         print("\n".join(describe(table, status.get("params_saved"))))
     else:
-        for name, value in sets:
+        for name in sets:
             print("%s = %d %s" % (name, table[name].value, table[name].unit))
     if status.get("params_file_error"):
         print("saved parameters not loaded at boot: %s" % status["params_file_error"])

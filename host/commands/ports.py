@@ -1,6 +1,8 @@
 """`host ports`: the serial ports on this machine, what is probably on each, and (--probe)
 whether lsea-kit firmware answers there."""
 
+import json
+
 from host.link import ports as port_list
 from host.link.ports import label
 
@@ -8,6 +10,7 @@ from host.link.ports import label
 def add_parser(subparsers):
     p = subparsers.add_parser("ports", help="list serial ports and the boards on them (--port auto picks the only one)")
     p.add_argument("--probe", action="store_true", help="ask each board-like port whether lsea-kit firmware answers")
+    p.add_argument("--json", action="store_true", help="print the ports as a JSON list")
     p.set_defaults(func=run)
 
 
@@ -25,6 +28,12 @@ def probe(device):
 
 def run(args):
     ports = port_list.list_ports()
+    if args.json:
+        rows = [{"device": device, "vid": vid, "pid": pid, "description": desc, "board": label(vid, pid),
+                 **({"probe": probe(device)} if args.probe and label(vid, pid) else {})}
+                for device, vid, pid, desc in ports]
+        print(json.dumps(rows, indent=1))
+        return 0
     if not ports:
         print("no serial ports (plug the board in; or use --port sim)")
         return 0

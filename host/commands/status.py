@@ -2,8 +2,8 @@
 
 import json
 
+from host.api import Board
 from host.commands._options import add_port_arguments
-from host.link.connect import open_board
 
 # known fields first, in this order, with how to show them; any other field follows as it is
 LABELS = (
@@ -17,11 +17,13 @@ LABELS = (
     ("last_fault", "last fault"),
     ("target", "target"),
     ("duty", "duty (of 10000)"),
-    ("stroke_um", "soft stroke limits (um)"),
+    ("stroke_um", "soft stroke limits on D2 (um)"),
+    ("end_stops_um", "block's end stops in D2 (um)"),
     ("params_changed", "parameters changed since boot"),
     ("params_saved", "saved parameters (boot values)"),
     ("params_file_error", "saved parameters problem"),
     ("params_restored", "parameters restored"),
+    ("params_temporary", "temporary parameters"),
     ("steps", "steps since boot (mod 2**30)"),
     ("period_us", "loop period (us)"),
     ("step_us_max", "longest step (us)"),
@@ -58,9 +60,9 @@ def describe(status):
             value = ", ".join(value) if value else "none"
             if status.get("faults"):
                 value += "  (host reset clears them)"
-        elif key == "stroke_um" and value:
+        elif key in ("stroke_um", "end_stops_um") and value:
             value = "%s .. %s" % tuple(value)
-        elif key == "params_changed":
+        elif key in ("params_changed", "params_temporary"):
             value = ", ".join(value) if value else "none"
         elif key == "params_saved" and value is not None:
             value = ", ".join("%s=%d" % kv for kv in sorted(value.items())) or "all defaults"
@@ -73,8 +75,8 @@ def describe(status):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load) as board:
-        status = board.status_info
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load) as board:
+        status = board.status()
     if args.json:
         print(json.dumps(status, indent=1, sort_keys=True))
     else:

@@ -55,13 +55,11 @@ def add_parser(subparsers):
 
 
 def plot(trials, chosen, mode, path):
-    import matplotlib
-
-    matplotlib.use("Agg")  # a file is written; no window is opened
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # a figure of its own: matplotlib's backend stays as it is
 
     _, _, unit, scale = LOOPS[mode]
-    fig, ax = plt.subplots(figsize=(10, 5))
+    fig = Figure(figsize=(10, 5))
+    ax = fig.subplots()
     for i, tr in enumerate(trials):
         r = tr.response
         ax.plot(r.t, r.y * scale, lw=2.2 if i == chosen else 1.0,
@@ -76,7 +74,6 @@ def plot(trials, chosen, mode, path):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=100)
-    plt.close(fig)
     return path
 
 

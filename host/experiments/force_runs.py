@@ -102,12 +102,10 @@ def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS
 
 
 def plot_blocking(path, runs):
-    import matplotlib
+    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig = Figure(figsize=(7.5, 4.5))
+    ax = fig.subplots()
     for name, run in runs:
         ax.plot(run["t"], run["d2"], label="%s: target %+.0f N, ends at %.1f mm" % (name, run["target_n"], run["final"]))
     ax.set_xlabel("time (s)")
@@ -117,4 +115,3 @@ def plot_blocking(path, runs):
     ax.legend(fontsize=8)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)

@@ -90,6 +90,9 @@ def write_stopped(out_dir, results, phase, why):
     lines = ["# The paper's experiments: stopped", "",
              "The run stopped during **%s**: %s" % (phase, why), "",
              "Completed sections, saved in results.json: %s." % (", ".join(results.get("completed") or ["none"])), ""]
+    for step in results.get("calibration_steps") or []:
+        lines += ["## calibration step %s: %s" % (step["step"], "accepted" if step["accepted"] else "NOT accepted"), ""]
+        lines += ["- " + line for line in step["lines"]] + [""]
     for key in ("pot_models", "fig5", "fig7", "fig8", "dead_zone", "table1"):
         if key in results:
             lines += ["## %s" % key, "", "```", json_text(results[key]), "```", ""]
@@ -124,7 +127,12 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
 
     say("== calibration (all steps) ==")
     progress.start("calibration")
-    accepted = run_steps(session, rig, prompter, STEPS, opts)
+    from host.guided.run_log import RunLog
+
+    log = RunLog(opts.out, "host experiment paper", board=session.board["name"])
+    results["calibration_steps"] = log.results["steps"]  # each step's lines as it finishes, for a stopped run
+    accepted = run_steps(session, rig, prompter, STEPS, opts, log=log)
+    log.finish()
     missing = [s for s in STEPS if s not in accepted]
     if missing:
         from host.errors import UserError
@@ -154,7 +162,10 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     fd = accepted["force"].data
     results["force_fit"] = {"coeffs_f": list(fd["coeffs_f"]), "coeffs_d": list(fd["coeffs_d"]),
                             "hysteresis_n": fd["hysteresis_n"], "friction_n": fd["friction_n"],
-                            "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"])}
+                            "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"]),
+                            "kind": fd.get("kind", "poly"),
+                            "knots_d": None if fd.get("knots_d") is None else list(fd["knots_d"]),
+                            "knots_f": None if fd.get("knots_f") is None else list(fd["knots_f"])}
     results["method"] = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
                          "friction": opts.friction, "budget": opts.budget, "rounds": opts.rounds,
                          "force_order_chosen": int(fd["order"])}
@@ -165,7 +176,9 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     progress.start("Fig. 7 and Fig. 8")
     nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
     session.flash(nominal)
-    before = displacement.run_targets(session, rig, opts.ref_scale, label="before")
+    zero = displacement.zero_at_stops(session, rig, opts.ref_scale)
+    say("  reference zeroed at the block's end stops: %.3f and %.3f mm, shift %+.3f mm" % (zero["low"], zero["high"], zero["shift"]))
+    before = displacement.run_targets(session, rig, opts.ref_scale, zero, label="before")
 
     say("== Fig. 8 without the Df correction ==")
     session.flash(variants.write_without_df(out_dir / "calibration-without-df.json", calibrated))
@@ -173,10 +186,10 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
 
     say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
     session.flash(calibrated)
-    after = displacement.run_targets(session, rig, opts.ref_scale, label="after")
+    after = displacement.run_targets(session, rig, opts.ref_scale, zero, label="after")
     for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
         blocking.append(("with Df", force_runs.blocking_run(session, rig, target)))
-    results["fig7"] = {"before": before, "after": after}
+    results["fig7"] = {"before": before, "after": after, "reference_zero": zero}
     displacement.plot(out_dir / "fig7.png", before, after)
     results["fig8"] = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]
     force_runs.plot_blocking(out_dir / "fig8.png", blocking[:2])

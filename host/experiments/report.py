@@ -142,10 +142,18 @@ def write(out_dir, r, opts, command=None):
     for name in r["calibration_plots"]:
         add("![%s](%s)" % (name, name))
     add("")
-    add("Force fit: F0(d) = %s (N, d in mm); d(F0) = %s (mm, F0 in N); block friction %s N; loading/unloading "
-        "hysteresis %s N. Paper (reconstructed): F0 ~ 0.65 d^2 + 12.37 d + 2.08, d ~ 0.00091 F0^2 + 0.070 F0 - 0.18." % (
-            _poly(r["force_fit"]["coeffs_f"], "d"), _poly(r["force_fit"]["coeffs_d"], "F0"),
-            _f(r["force_fit"].get("friction_n")), _f(r["force_fit"]["hysteresis_n"])))
+    ff = r["force_fit"]
+    if ff.get("kind") == "pwl":
+        model = ("a %d-knot table through (d mm, F0 N) %s, its inverse d(F0) the same knots (the spring's stiffness "
+                 "changes where a preloaded spring lifts off: a polynomial's cross-validated error was over %.0f %% "
+                 "higher; the best polynomial: F0 = %s)" % (
+                     len(ff["knots_d"]), ", ".join("(%.3f, %.2f)" % kv for kv in zip(ff["knots_d"], ff["knots_f"])),
+                     100 * (1 / 0.8 - 1), _poly(ff["coeffs_f"], "d")))
+    else:
+        model = "%s (N, d in mm); d(F0) = %s (mm, F0 in N)" % (_poly(ff["coeffs_f"], "d"), _poly(ff["coeffs_d"], "F0"))
+    add("Force fit: F0(d) = %s; block friction %s N; loading/unloading hysteresis %s N. Paper (reconstructed): "
+        "F0 ~ 0.65 d^2 + 12.37 d + 2.08, d ~ 0.00091 F0^2 + 0.070 F0 - 0.18." % (
+            model, _f(ff.get("friction_n")), _f(ff["hysteresis_n"])))
     add("")
 
     add("## Fig. 3a: objective vs order (pot 2 sweep of this run)")
@@ -167,14 +175,21 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("## Fig. 7: displacement control, error measured by the reference sensor on pot 2")
     add("")
-    add("| target mm | before: reference mm | before: error mm | after: reference mm | after: error mm |")
-    add("| --- | --- | --- | --- | --- |")
+    add("| target mm | before: reference mm | before: error mm | after: reference mm | after: error mm | after: settle time s |")
+    add("| --- | --- | --- | --- | --- | --- |")
     for b, a in zip(r["fig7"]["before"], r["fig7"]["after"]):
-        add("| %g | %s | %s%s | %s | %s%s |" % (b["target"], _f(b["reference"]), _f(b["error"]), "" if b["settled"] else " (not settled)",
-                                             _f(a["reference"]), _f(a["error"]), "" if a["settled"] else " (not settled)"))
+        add("| %g | %s | %s%s | %s | %s%s | %s |" % (b["target"], _f(b["reference"]), _f(b["error"]), "" if b["settled"] else " (not settled)",
+                                                  _f(a["reference"]), _f(a["error"]), "" if a["settled"] else " (not settled)",
+                                                  _f(a.get("settle_s"), 2)))
     add("")
+    zero = r["fig7"].get("reference_zero")
     add("Max |error| over 1-59 mm: %s mm before, %s mm after. Paper: 14.4 -> 4.2 mm. The reference sensor measures "
-        "pot 2's wiper travel (as on the paper's rig), so pot 2's mounting error is not in these errors." % (_f(before), _f(after)))
+        "pot 2's wiper travel (as on the paper's rig), so pot 2's mounting error is not in these errors. Positions are "
+        "measured from the block's end stops, whose middle is 30 mm, by the calibration and by this experiment alike%s. "
+        "Settled: the 0.1 s mean of the firmware's D2 within 0.05 mm of the target for 0.2 s; the settle time runs from "
+        "the command (the block starts at the previous target) until then." % (
+            _f(before), _f(after), "" if not zero else " (the reference read %s and %s mm at the stops here)" % (
+                _f(zero["low"]), _f(zero["high"]))))
     add("")
     add("![Fig. 7](fig7.png)")
     add("")

@@ -227,12 +227,10 @@ def summary_markdown(rows, title, n_samples, noise):
 
 def plot(rows, path, title, n_samples, noise=None):
     """PNG: objective vs order (the paper's Fig. 3a) and RMS vs n_params, log y, noise floor drawn."""
-    import matplotlib
+    from matplotlib.figure import Figure  # a figure of its own: matplotlib's backend stays as it is
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    fig = Figure(figsize=(12, 4.8))
+    ax1, ax2 = fig.subplots(1, 2)
     # models that coincide (pcm, pcm-raw and cheb are one polynomial) stay visible by style
     styles = [("o", "-"), ("s", "--"), ("^", ":"), ("v", "-."), ("D", "-"), ("x", "--"), ("+", ":"), ("*", "-.")]
     for i, name in enumerate(dict.fromkeys(r["model"] for r in rows)):
@@ -254,7 +252,6 @@ def plot(rows, path, title, n_samples, noise=None):
     fig.suptitle(title)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
 
 
 def write_outputs(rows, out_dir, stem, title, n_samples, noise):

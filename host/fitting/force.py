@@ -9,6 +9,11 @@ least squares (h is one more column); d(F0) is fitted to the spring force F_gaug
 firmware turns h into a play operator on F0(d) (firmware/measurement.py). Orders: `auto` picks
 the lowest within 5 % of the best cross-validated error (host/fitting/cross_validation.py); an
 integer fixes it (the paper's quadratics: 2).
+
+A spring pair whose preload ends inside the force range halves its stiffness at one deformation,
+a kink no polynomial of order <= 5 follows: when cross-validation says a free-knot table
+(host/fitting/piecewise_linear.py) predicts clearly better, F0 is that table, and d(F0) its exact
+inverse.
 """
 
 from dataclasses import dataclass, field
@@ -18,6 +23,7 @@ import numpy as np
 from host.errors import UserError
 from host.fitting.cross_validation import cv_rms as _cv_rms
 from host.fitting.cross_validation import lowest_near_best
+from host.fitting.piecewise_linear import fit_pwl, hat_weights
 
 MAX_ORDER = 5
 
@@ -33,6 +39,20 @@ class ForceFit:
     order_f: int
     order_d: int
     scores: dict = field(default_factory=dict)  # order -> cross-validated rms (N)
+    kind: str = "poly"  # or "pwl": F0 is the table (knots_d, knots_f), d(F0) its exact inverse
+    knots_d: np.ndarray = None
+    knots_f: np.ndarray = None
+    table_scores: dict = field(default_factory=dict)  # knots -> cross-validated rms (N)
+
+    def f0(self, d):
+        """F0 at deformations d (mm), N; a table goes on straight past its end knots, as its export does."""
+        d = np.asarray(d, dtype=float)
+        if self.kind != "pwl":
+            return np.polyval(self.coeffs_f, d)
+        kx, ky = self.knots_d, self.knots_f
+        lo = ky[0] + (d - kx[0]) * (ky[1] - ky[0]) / (kx[1] - kx[0])
+        hi = ky[-1] + (d - kx[-1]) * (ky[-1] - ky[-2]) / (kx[-1] - kx[-2])
+        return np.where(d < kx[0], lo, np.where(d > kx[-1], hi, np.interp(d, kx, ky)))
 
 
 def _design(d, s, order, friction):
@@ -54,7 +74,36 @@ def cv_rms(d, f, s, order, friction):
     return _cv_rms(len(d), lambda train: _solve(d[train], f[train], s[train], order, friction), residuals)
 
 
-def fit_force(d_mm, force_n, s, order="auto", friction=True):
+def _hat(d, kx):
+    j, w = hat_weights(d, kx)
+    a = np.zeros((len(d), len(kx)))
+    a[np.arange(len(d)), j] = 1.0 - w
+    a[np.arange(len(d)), j + 1] = w
+    return a
+
+
+def _solve_table(d, f, s, kx, friction):
+    a = _hat(d, kx)
+    sol = np.linalg.lstsq(np.column_stack([a, s]) if friction else a, f, rcond=None)[0]
+    return (sol[:-1], float(sol[-1])) if friction else (sol, 0.0)
+
+
+def table_knots(d, spring, k):
+    """Knot positions of a k-knot free-knot piecewise-linear F0 (host.fitting.piecewise_linear)."""
+    order = np.argsort(d, kind="stable")
+    return np.asarray(fit_pwl(d[order], spring[order], k).coefficients["knots_x"])
+
+
+def cv_rms_table(d, f, s, kx, friction):
+    """Root mean square hold-out error of a table F0 on the knots kx."""
+    def residuals(model, test):
+        v, h = model
+        return f[test] - np.interp(d[test], kx, v) - h * s[test]
+
+    return _cv_rms(len(d), lambda train: _solve_table(d[train], f[train], s[train], kx, friction), residuals)
+
+
+def fit_force(d_mm, force_n, s, order="auto", friction=True, tables=True):
     """F_gauge = F0(d) + h s and d(F0 = F_gauge - h s) by least squares: a ForceFit."""
     d = np.asarray(d_mm, dtype=float)
     f = np.asarray(force_n, dtype=float)
@@ -73,8 +122,45 @@ def fit_force(d_mm, force_n, s, order="auto", friction=True):
     cd = np.polyfit(spring, d, order)
     resid = f - np.polyval(cf, d) - h * s
     rd = d - np.polyval(cd, spring)
-    return ForceFit(cf, cd, h, float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid))),
-                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
+    fit = ForceFit(cf, cd, h, float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid))),
+                   float(np.sqrt(np.mean(rd**2))), order, order, scores)
+    if tables and len(d) >= 12:
+        _try_table(fit, d, f, s, friction, min(scores.values()))
+    return fit
+
+
+TABLE_KNOTS = range(3, 9)
+TABLE_GAIN = 0.8  # a table replaces the polynomial when its hold-out error is at most this fraction
+
+
+def _try_table(fit, d, f, s, friction, poly_cv):
+    """Replace the polynomial F0 by a free-knot table when cross-validation says it predicts
+    clearly better (rms 0.2-0.3 N for a polynomial across a spring's lift-off, where the table
+    leaves the gauge's noise). The table must rise, so its inverse is a table too."""
+    spring0 = f - fit.friction_n * s
+    tables = {}
+    for k in TABLE_KNOTS:
+        if len(d) < 3 * k:
+            break
+        kx = table_knots(d, spring0, k)
+        values, h = _solve_table(d, f, s, kx, friction)
+        if h < 0:
+            values, h = _solve_table(d, f, s, kx, False)
+        if np.all(np.diff(values) > 0):  # a knot span without data can fold the table: not a spring
+            tables[k] = (kx, values, h)
+    fit.table_scores = {k: cv_rms_table(d, f, s, t[0], friction) for k, t in tables.items()}
+    if not fit.table_scores:
+        return
+    k = lowest_near_best(fit.table_scores, min(fit.table_scores))
+    if min(fit.table_scores.values()) > TABLE_GAIN * poly_cv:
+        return
+    kx, values, h = tables[k]
+    resid = f - np.interp(d, kx, values) - h * s
+    spring = f - h * s
+    rd = d - np.interp(spring, values, kx)
+    fit.kind, fit.knots_d, fit.knots_f, fit.friction_n = "pwl", kx, values, h
+    fit.rms_n, fit.max_n = float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid)))
+    fit.rms_d_mm = float(np.sqrt(np.mean(rd**2)))
 
 
 def hysteresis_n(d, f, loading, order):

@@ -6,10 +6,17 @@ piecewise-linear table (`pwl`). The candidates are therefore BCM of degree 1..3 
 piecewise-linear curves with k knots, ordered by how many numbers the fit stores (n_params).
 
 Rule: take the cheapest candidate whose RMS is within `tolerance` (10 %) of the sweep's noise
-floor, because a better fit than the noise allows only learns the noise. If none gets there,
-take the most accurate candidate within the parameter budget (default 12 numbers), and say so.
+floor, because a better fit than the noise allows only learns the noise, and whose residuals
+have no local bias the noise cannot explain: over BIAS_BINS equal bins of the codes, each bin's
+mean residual, in units of its standard error (the bin's own scatter / sqrt(samples in it)),
+stays within BIAS_Z. The RMS alone hides a knee the curve cuts: on a pot with 5 LSB of noise a table 44 um
+off over a whole millimetre passed at 3 % above the floor, and that error went on into Df and
+the position loop. If none gets there, take the most accurate candidate within the parameter
+budget (default 12 numbers) or, among those within PLATEAU (2 %) of its RMS and without a local
+bias, the cheapest, and say so.
 """
 
+import math
 from dataclasses import dataclass, field
 
 from host.fitting.models import fit_model
@@ -17,6 +24,10 @@ from host.fitting.models import fit_model
 BCM_DEGREES = (1, 2, 3)  # what firmware/bcm_fixed.bcm3 can evaluate (after degree elevation)
 DEFAULT_BUDGET = 12
 DEFAULT_TOLERANCE = 0.10
+BIAS_BINS = 60  # about 1 mm each over a 60 mm stroke
+BIAS_Z = 3.5  # the largest of 60 bin means of pure noise exceeds 3.5 standard errors ~3 % of the time
+PLATEAU = 0.02  # a candidate this close to the best RMS is as good
+BIAS_MIN_SAMPLES = 10  # bins with fewer samples are not judged
 
 
 @dataclass
@@ -36,6 +47,29 @@ def candidates(budget=DEFAULT_BUDGET):
     return sorted((c for c in out if c[0] <= budget), key=lambda c: (c[0], c[1] != "bcm"))
 
 
+def bias_z(result, x, y, bins=BIAS_BINS):
+    """The largest |mean residual| of a bin of codes, in standard errors of that bin's mean (from
+    the bin's own scatter: near a pot's flat end one code spans several times more travel, so
+    the noise in mm is larger there than the sweep's floor says)."""
+    import numpy as np
+
+    x = np.asarray(x, dtype=float)
+    resid = np.asarray(y, dtype=float) - result(x)
+    edges = np.linspace(x.min(), x.max(), bins + 1)
+    idx = np.clip(np.digitize(x, edges) - 1, 0, bins - 1)
+    count = np.bincount(idx, minlength=bins).astype(float)
+    total = np.bincount(idx, weights=resid, minlength=bins)
+    squares = np.bincount(idx, weights=resid * resid, minlength=bins)
+    ok = count >= BIAS_MIN_SAMPLES
+    if not ok.any():
+        return 0.0
+    n, mean = count[ok], total[ok] / count[ok]
+    var = np.maximum(squares[ok] - n * mean * mean, 0.0) / (n - 1)
+    se = np.sqrt(var / n)
+    se = np.maximum(se, 1e-12 + 1e-9 * np.max(np.abs(resid)))  # a noise-free sweep: any offset counts
+    return float(np.max(np.abs(mean) / se))
+
+
 def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLERANCE, n_excluded=0, progress=None):
     """Fit candidates cheapest first; returns a Selection (see the module docstring for the rule)."""
     cands = candidates(budget)
@@ -48,21 +82,32 @@ def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLE
             progress("auto: trying %s order %d (%d parameters)" % (model, order, n_params))
         r = fit_model(model, x, y, order, n_excluded=n_excluded)
         fits.append(r)
-        tried.append({"model": model, "order": order, "n_params": r.n_params, "rms": r.rms})
-        if target is not None and r.rms <= target and r.monotone:
+        z = bias_z(r, x, y) if noise and math.isfinite(r.rms) else None
+        tried.append({"model": model, "order": order, "n_params": r.n_params, "rms": r.rms, "bias_z": z})
+        if target is not None and r.rms <= target and r.monotone and z is not None and z <= BIAS_Z:
             reason = (
                 "%s order %d is the cheapest firmware model (%d parameters) within %.0f %% of the floor "
-                "(rms %.4g vs floor %.4g)" % (model, order, r.n_params, 100 * tolerance, r.rms, noise)
+                "(rms %.4g vs floor %.4g) with no local bias beyond the noise (largest 1/%d-range bin mean "
+                "%.1f standard errors)" % (model, order, r.n_params, 100 * tolerance, r.rms, noise, BIAS_BINS, z)
             )
             return Selection(r, reason, tried)
     usable = [r for r in fits if r.monotone] or fits
     best = min(usable, key=lambda r: r.rms)
+    # where the floor is not reached (it underestimates a sweep whose noise varies along the
+    # curve), the cheapest candidate within PLATEAU of the best and without a local bias: the
+    # extra knots of the best one only follow noise
+    z_of = {id(r): t["bias_z"] for r, t in zip(fits, tried)}
+    plateau = [r for r in usable if r.rms <= (1.0 + PLATEAU) * best.rms and (z_of[id(r)] or 0.0) <= BIAS_Z]
+    if plateau:
+        best = plateau[0]
     if target is None:
         why = "the noise floor is unknown"
     else:
-        why = "no model within %d parameters got within %.0f %% of the floor %.4g" % (budget, 100 * tolerance, noise)
-    reason = "%s, so the most accurate one was chosen: %s order %d (%d parameters, rms %.4g%s)" % (
+        why = ("no model within %d parameters got within %.0f %% of the floor %.4g without a local bias beyond "
+               "the noise" % (budget, 100 * tolerance, noise))
+    reason = "%s, so the cheapest within %.0f %% of the most accurate was chosen: %s order %d (%d parameters, rms %.4g%s)" % (
         why,
+        100 * PLATEAU,
         best.model,
         best.order,
         best.n_params,

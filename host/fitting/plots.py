@@ -3,14 +3,12 @@
 Residuals are drawn in micrometres when the reference unit is mm (a calibration's error is a
 few tens of um on a 60 mm stroke, invisible on the mm scale), else in the reference unit. The
 noise floor, when known, is drawn as a +-1 sigma band so one can see what is left to learn.
+The figure is a matplotlib Figure of its own, written straight to the file: no pyplot, so
+importing or calling this leaves matplotlib's backend (a notebook's, say) as it was.
 """
 
-import matplotlib
-
-matplotlib.use("Agg")  # files only, never a window (CI, SSH sessions)
-
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import numpy as np
+from matplotlib.figure import Figure
 
 
 def plot_fit(path, x, y, result, unit="mm", noise=None, title=None, direction=None):
@@ -18,7 +16,8 @@ def plot_fit(path, x, y, result, unit="mm", noise=None, title=None, direction=No
     x = np.asarray(x, dtype=float)
     y = np.asarray(y, dtype=float)
     scale, runit = (1000.0, "um") if unit == "mm" else (1.0, unit)
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(7.5, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+    fig = Figure(figsize=(7.5, 6.5))
+    top, bottom = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     grid = np.linspace(result.x_range[0], result.x_range[1], 1500)
     if direction is None:
         top.plot(x, y, ".", ms=2, color="0.55", label="sweep (%d samples)" % x.size)
@@ -52,5 +51,4 @@ def plot_fit(path, x, y, result, unit="mm", noise=None, title=None, direction=No
     bottom.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -66,6 +66,10 @@ def refusals(result, noise, span):
                    "of the reading?" % (result.rms, result.rms / noise, noise, RMS_REFUSE))
     if not result.monotone:
         why.append("the curve is not monotone, so the firmware could not tell positions apart")
+    elif float(result(result.x_range[1])) < float(result(result.x_range[0])):
+        why.append("the position falls as the reading rises, and the firmware refuses such a curve (positions must "
+                   "grow toward 60 mm): add this pot to \"pot_invert\" in the board file (host calibrate bringup "
+                   "finds it) and sweep again")
     return why
 
 

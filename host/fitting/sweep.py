@@ -4,7 +4,8 @@ A sweep CSV has a header row with at least the columns `raw` and `reference`; an
 `direction` column (+1 / -1, the direction of motion) is kept for hysteresis-aware noise
 estimates; every other column is ignored. Hygiene, each step counted in `Sweep.exclusions`:
 
-- rows whose raw or reference is not a finite number are dropped ("non_finite");
+- rows whose raw or reference is not a finite number are dropped ("non_finite"); a number beyond
+  +-MAX_MAGNITUDE refuses the sweep;
 - rows clipped at an end are dropped ("clipped_low" / "clipped_high"): two or more rows that
   share the lowest (or highest) raw value AND either sit on a rail of the converter (0 or its
   full scale, when that is known: given, or guessed for ADC codes) or have a reference that kept
@@ -31,6 +32,9 @@ MIN_POINTS = 20  # fewer cannot pin down a 7-parameter BCM-3 with any redundancy
 MIN_COVERAGE = 0.25  # of the ADC full scale, when raw looks like ADC codes
 MAX_GAP = 0.25  # largest empty stretch between readings, as a share of the covered span
 ADC_FULL_SCALES = (1023, 4095, 16383, 65535)  # 10, 12, 14, 16 bit
+# Larger numbers are no pot's reading or position (60 mm in nm is 6e7), and near 1e300 the fits'
+# sums of squares overflow: tracebacks and warnings instead of a result
+MAX_MAGNITUDE = 1e12
 
 
 @dataclass
@@ -51,9 +55,13 @@ class Sweep:
 
 def _number(text, column, line):
     try:
-        return float(text)
+        value = float(text)
     except (TypeError, ValueError):
         raise UserError("line %d: %s value %r is not a number" % (line, column, text)) from None
+    if abs(value) > MAX_MAGNITUDE and math.isfinite(value):  # non-finite rows are dropped below
+        raise UserError("line %d: %s value %s is beyond +-%g: not a reading or a position in any unit"
+                        % (line, column, text, MAX_MAGNITUDE))
+    return value
 
 
 def load_sweep(path, full_scale=None):

@@ -4,9 +4,9 @@ bench commands (`host move`, `host force`).
 Sweeps run in open loop at a low duty from one end stop to the other: they need no calibration,
 and the stop is found from the data (the pots stop changing), not from a guessed time. While a
 sweep runs the firmware's soft stroke limits are opened (they would stop a calibrated board 1 mm
-short of the ends) and restored afterwards. Closed-loop moves wait until telemetry settles
-(settle). Every wait is in the board's own time (host/link/board_time.py). Heartbeats keep the
-firmware's host timeout away.
+short of the ends) and restored afterwards, by the host or, if it dies, by the firmware (they are
+temporary values). Closed-loop moves wait until telemetry settles (settle). Every wait is in the
+board's own time (host/link/board_time.py). Heartbeats keep the firmware's host timeout away.
 """
 
 import contextlib
@@ -64,13 +64,19 @@ def _stalled(records, seconds, hz=STREAM_HZ):
     return all(np.ptp(tail[:, COL[c]]) <= STALL_CODES for c in ("raw1", "raw2"))
 
 
+OPEN_STROKE = {"stroke_min_um": -65535, "stroke_max_um": 65535, "stop_margin_um": -65535}
+
+
 @contextlib.contextmanager
 def open_stroke(client):
-    """Let open-loop sweeps reach the end stops on a calibrated board; restore the limits after."""
-    saved = {name: client.call("get", name) for name in ("stroke_min_um", "stroke_max_um")}
+    """Let open-loop sweeps reach the end stops on a calibrated board; restore the limits after.
+    The open limits are temporary values: a host killed meanwhile gets them restored by the
+    firmware once it has been silent for host_timeout_ms, so keep nothing inside that waits
+    for a person (the firmware would close them again)."""
+    saved = {name: client.call("get", name) for name in OPEN_STROKE}
     try:
-        client.call("set", "stroke_min_um", -65535)
-        client.call("set", "stroke_max_um", 65535)
+        for name, value in OPEN_STROKE.items():
+            client.call("set", name, value, "temp")
         yield
     finally:
         client.call("stop")
@@ -100,16 +106,26 @@ def moving_part(records, column):
     return records[idx[0] : idx[-1] + 1] if idx.size else records[:0]
 
 
-def sweep(client, duty, say=None):
-    """To the low stop fast, then a slow forward and a slow backward run: (records, direction)."""
+def at_stop(records, hz=STREAM_HZ):
+    """The records of the stall that ended a drive_to_stop (the actuator still at an end stop)."""
+    return records[-int(STALL_S * hz):]
+
+
+def sweep(client, duty, say=None, stops=None):
+    """To the low stop fast, then a slow forward and a slow backward run: (records, direction).
+    With a dict `stops`, its "low" and "high" get the records standing still at each end stop
+    (the low one from the end of the backward run, which arrives as slowly as the forward one)."""
     with open_stroke(client):
         drive_to_stop(client, -max(3 * abs(duty), 2500))
         if say:
             say("  sweeping forward (duty %+d)" % abs(duty))
-        fwd = moving_part(drive_to_stop(client, abs(duty)), "raw2")
+        fwd_all = drive_to_stop(client, abs(duty))
         if say:
             say("  sweeping backward (duty %+d)" % -abs(duty))
-        back = moving_part(drive_to_stop(client, -abs(duty)), "raw2")
+        back_all = drive_to_stop(client, -abs(duty))
+    fwd, back = moving_part(fwd_all, "raw2"), moving_part(back_all, "raw2")
+    if stops is not None:
+        stops["high"], stops["low"] = at_stop(fwd_all), at_stop(back_all)
     records = np.concatenate([fwd, back])
     direction = np.concatenate([np.ones(len(fwd)), -np.ones(len(back))])
     return records, direction
@@ -168,12 +184,17 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
         board.stop_stream()
 
 
+HOLD_S = 0.2
+
+
 def hold(client, mode, target, field, tolerance, timeout_s=8.0, measure_s=0.3):
-    """Settle `mode` at `target` (settle), then log `measure_s` more
-    seconds still in that mode: (settled, records of the measurement)."""
+    """Settle `mode` at `target` (through settle: the 0.1 s mean of `field`
+    within `tolerance` for HOLD_S), then log `measure_s` more seconds still in that mode:
+    (settled, records of the measurement, settle time: board seconds from the command until the
+    field entered the tolerance for good, or the timeout)."""
     reset(client)
-    ok, _, _ = settle(client, mode, target, field, tolerance, timeout_s=timeout_s, hold_s=0.2)
-    return ok, collect(client, measure_s)
+    ok, _, seconds = settle(client, mode, target, field, tolerance, timeout_s=timeout_s, hold_s=HOLD_S)
+    return ok, collect(client, measure_s), (seconds - HOLD_S if ok else seconds)
 
 
 def mean(records, column):

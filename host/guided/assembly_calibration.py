@@ -42,6 +42,21 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     coeffs, resid, order, scores = fit_df(x, df, opts.df_order)
     lo, hi = float(np.min(x)), float(np.max(x))
     span = hi - lo
+    # The firmware clamps D1 to the fitted range: past the data a high-order polynomial is a guess
+    # that grows fast, a constant is a small, bounded error (the nut reaches at most the cavity's
+    # 2 mm past the block's end stops)
+    domain = (lo, hi)
+    chosen = order
+    while True:  # a high order can need more bits than 31 give: the next lower one that exports
+        try:
+            section = poly_section(coeffs, domain, 1000.0, 1000.0, ("um", "um"), {})
+            break
+        except UserError:
+            if order <= 1 or opts.df_order != "auto":
+                raise
+            order -= 1
+            coeffs = np.polyfit(x, df, order)
+            resid = df - np.polyval(coeffs, x)
     lines = [
         "Df: %d samples over D1 %.1f..%.1f mm" % (len(x), lo, hi),
         "Df: cross-validated rms by order: " + ", ".join("%d: %.1f um" % (n, 1000 * s) for n, s in scores.items()),
@@ -49,13 +64,15 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
         "1 mm bin means (rms %.1f um)" % (order, np.max(np.abs(df)), np.max(np.abs(resid)), binned_peak(x, resid),
                                           1000 * np.sqrt(np.mean(resid**2))),
     ]
+    if order != chosen:
+        lines.append("Df: order %d needs more than 31 bits in the firmware's integers: order %d used" % (chosen, order))
     ok = span >= opts.limits.min_range_mm
     if not ok:
         lines.append("Df: FAIL the sweep covered only %.1f mm: let the block run end to end" % span)
     stats = {"order": order, "peak_before_mm": float(np.max(np.abs(df))), "peak_after_mm": float(np.max(np.abs(resid))),
              "peak_after_binned_mm": binned_peak(x, resid),
              "rms_after_mm": float(np.sqrt(np.mean(resid**2))), "n_samples": int(len(x))}
-    section = poly_section(coeffs, (lo - 0.05 * span, hi + 0.05 * span), 1000.0, 1000.0, ("um", "um"), stats)
+    section["fit"] = stats
     png = opts.out_dir / "calibration-df.png"
     plot_df(png, x, df, coeffs, resid, direction)
     data = {"d1_mm": x, "df_mm": df, "resid_mm": resid, "coeffs": coeffs, "direction": direction, "stats": stats}
@@ -63,12 +80,10 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
 
 
 def plot_df(path, x, df, coeffs, resid, direction=None):
-    import matplotlib
+    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(7.5, 4.5))
+    fig = Figure(figsize=(7.5, 4.5))
+    ax = fig.subplots()
     ax.plot(x, df, ".", ms=2, color="tab:orange", label="Df = D1 - D2 before (peak %.2f mm)" % np.max(np.abs(df)))
     ax.plot(x, resid, ".", ms=2, color="tab:blue", label="after: Df - Df_hat (peak %.3f mm)" % np.max(np.abs(resid)))
     grid = np.linspace(np.min(x), np.max(x), 400)
@@ -81,5 +96,4 @@ def plot_df(path, x, df, coeffs, resid, direction=None):
     ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -27,6 +27,11 @@ from host.errors import UserError
 from host.guided.checks import Limits
 
 STEPS = ("pots", "assembly", "force")
+
+
+class StepRefused(UserError):
+    """A step's verdict stopped the run (its checks failed, bringup found problems): the person
+    has something to fix, as with any other user error (one line, exit status 2)."""
 BRINGUP = "bringup"
 
 
@@ -48,7 +53,8 @@ class Options:
     anchor_mm: float = 45.0
     rounds: int = 2
     levels: int = 8
-    max_duty: int = 5000
+    max_duty: int = 9000
+    force_range: float = 16.0
     settle_s: float = 0.5
     limits: Limits = field(default_factory=Limits)
     flash: bool = True
@@ -70,11 +76,15 @@ def bringup_done(path, board_name):
     return record if record.get("ok") and record.get("board") == board_name else None
 
 
-def run_bringup(session, rig, prompter, opts, alone):
+def run_bringup(session, rig, prompter, opts, alone, log=None):
     """The bringup step: show, record, and decide whether the calibration may go on."""
     from host.guided.bringup import calibrate_bringup
 
+    if log:
+        log.start(BRINGUP)
     outcome = calibrate_bringup(session, rig, prompter, opts)
+    if log:
+        log.done(outcome, accepted=outcome.ok)
     prompter.say("[bringup] results:")
     for line in outcome.lines:
         prompter.say("  " + line)
@@ -86,13 +96,14 @@ def run_bringup(session, rig, prompter, opts, alone):
     if outcome.ok:
         return outcome
     if alone or prompter.yes or not prompter.accept("Bringup found problems (above). Calibrate anyway?"):
-        raise UserError("bringup found %d problem(s): fix them (see above) and run host calibrate bringup again"
+        raise StepRefused("bringup found %d problem(s): fix them (see above) and run host calibrate bringup again"
                         % len(outcome.sections["bringup"]["problems"]))
     return outcome
 
 
-def run_steps(session, rig, prompter, steps, opts):
-    """Run `steps`; returns {step: StepOutcome} of the accepted ones."""
+def run_steps(session, rig, prompter, steps, opts, log=None):
+    """Run `steps`; returns {step: StepOutcome} of the accepted ones. `log` (host.guided.run_log.
+    RunLog) records each step as it finishes."""
     from host.guided.assembly_calibration import calibrate_assembly
     from host.guided.force_calibration import calibrate_force
     from host.guided.pot_calibration import calibrate_pots
@@ -102,7 +113,7 @@ def run_steps(session, rig, prompter, steps, opts):
     accepted = {}
     if BRINGUP in steps:
         steps = tuple(s for s in steps if s != BRINGUP)
-        accepted[BRINGUP] = run_bringup(session, rig, prompter, opts, alone=not steps)
+        accepted[BRINGUP] = run_bringup(session, rig, prompter, opts, alone=not steps, log=log)
         board_name = session.board["name"]
         if not steps:
             return accepted
@@ -127,6 +138,8 @@ def run_steps(session, rig, prompter, steps, opts):
                 raise
             keep_previous()  # a full run replaces it all; the unreadable file is kept aside
     for step in steps:
+        if log:
+            log.start(step)
         if step == "pots":
             outcome = calibrate_pots(session, rig, prompter, opts)
         elif step == "assembly":
@@ -139,23 +152,35 @@ def run_steps(session, rig, prompter, steps, opts):
         for png in outcome.plots:
             prompter.say("  plot: %s" % png)
         if not outcome.sections:
-            raise UserError("%s step produced no calibration: fix what the checks say and run it again" % step)
+            if log:
+                log.done(outcome, accepted=False)
+            raise StepRefused("%s step produced no calibration: fix what the checks say and run it again" % step)
         question = "Accept the %s calibration?" % step
         if not outcome.ok:
             question = "Some checks FAILED (see above). Accept the %s calibration anyway?" % step
             if prompter.yes:
-                raise UserError("%s step failed its checks (see above); not accepted under --yes" % step)
+                if log:
+                    log.done(outcome, accepted=False)
+                raise StepRefused("%s step failed its checks (see above); not accepted under --yes" % step)
         if not prompter.accept(question):
             prompter.say("  %s not accepted: the calibration file keeps its previous %s sections" % (step, step))
+            if log:
+                log.done(outcome, accepted=False)
             continue
         keep_previous()
         if full and step == "pots":
             # new pot curves: the Df and force sections were measured through the old ones
             doc = new_document(board=board_name)
+            old = {}
             try:
-                doc["pots"] = dict(read_calibration(path).get("pots") or {}) if path.exists() else {}
+                old = read_calibration(path) if path.exists() else {}
+                doc["pots"] = dict(old.get("pots") or {})
             except UserError:
                 pass
+            dropped = [n for n in ("df", "force", "force_inverse", "friction") if old.get(n) and n not in outcome.sections]
+            if dropped:
+                prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
+                             % (", ".join(dropped), path))
             for name, section in outcome.sections.items():
                 if name in POT_SECTIONS:
                     doc[name] = section
@@ -172,4 +197,6 @@ def run_steps(session, rig, prompter, steps, opts):
         if opts.flash:
             session.flash(path)
         accepted[step] = outcome
+        if log:
+            log.done(outcome, accepted=True)
     return accepted

@@ -14,10 +14,12 @@ host/fitting/force.py.
 """
 
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from host.calibration.file import friction_section, poly_section
+from firmware.calibration import FF_DUTY_MAX
+from host.calibration.file import force_table_section, friction_section, poly_section
 from host.errors import UserError
 from host.fitting.force import fit_force, hysteresis_n
 from host.guided import acquire
@@ -26,6 +28,8 @@ from host.guided.prompts import end_progress, progress_line
 
 D_RANGE_MM = (-2.0, 2.0)  # the cavity: |d| never exceeds 2 mm
 F_RANGE_N = (-25.0, 25.0)
+STEP_SPAN_DUTY = 5000  # --levels N: loading steps of 5000 / N duty (about 17 N in N steps on boards/sim.json)
+CAVITY_NEAR_MM = 1.8  # |d| beyond this: the nut is near the cavity wall, F0(d) turns vertical
 TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about the spring
 SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
@@ -41,7 +45,7 @@ def slack_position_mm(anchor_mm, side, gap_mm=1.5):
 
 
 def _move_slack(client, start):
-    ok, _ = acquire.hold(client, "position", int(start * 1000), "d2_um", 300, timeout_s=10)
+    ok, _, _ = acquire.hold(client, "position", int(start * 1000), "d2_um", 300, timeout_s=10)
     client.call("stop")
     if not ok:
         status = client.call("status")
@@ -67,7 +71,7 @@ class GaugeOnSide:
             rig.no_load()
         prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % self.start)
         _move_slack(self.client, self.start)
-        rig.hook_gauge(anchor_mm, side)
+        rig.hook_gauge(anchor_mm, side, gap_mm=gap_mm)
         self.tare_t, self.tares, self.read_t, self.readings = [], [], [], []
 
     def read(self, records=None, reads=1):
@@ -113,7 +117,7 @@ def _ramp_duty(client, start, end):
 
 
 def force_points(session, rig, prompter, opts, side="high"):
-    """(d_mm, force_N, s, loading, tares) from `opts.rounds` loading/unloading rounds against a
+    """(d_mm, force_N, s, loading, tares, duty) from `opts.rounds` loading/unloading rounds against a
     gauge on `side`, tared before the first round and after every round (GaugeOnSide).
     force_N is the actuator's force (negative toward 0 mm); s is the friction direction of
     each point (+1 after the force fell, -1 after it rose)."""
@@ -122,22 +126,34 @@ def force_points(session, rig, prompter, opts, side="high"):
     gauge = GaugeOnSide(session, rig, prompter, opts.anchor_mm, side)
     prompter.say("  taring the gauge (fibre slack)")
     gauge.tare()
-    levels = np.linspace(0, opts.max_duty, opts.levels + 1)[1:]
-    d, loading = [], []
+    # The duty a force needs depends on the motor, the supply and the screw, so the first
+    # round's loading goes up in equal steps until the gauge reads opts.force_range (or the duty
+    # reaches opts.max_duty, or the spring nears the cavity wall); every round then uses those
+    # levels. The fit is only trusted over the forces it saw: a weak motor's 5000 duty reached
+    # 7.5 N, and a linear F0 carried out to 15 N missed by 20 %.
+    step = STEP_SPAN_DUTY / opts.levels
+    levels = []
+    d, loading, duties = [], [], []
     for r in range(opts.rounds):
         client.call("mode", "open_loop")
         previous = 0.0
-        for load, seq in ((True, levels), (False, levels[::-1][1:])):
+        for load in (True, False):
+            seq = levels[::-1][1:] if not load else (levels or _levels_until(step, opts.max_duty))
             for duty in seq:
                 _ramp_duty(client, sign * previous, sign * duty)
                 previous = duty
                 acquire.collect(client, opts.settle_s)  # let it come to rest against the fibre
-                rec = acquire.collect(client, 0.3)
+                rec = deformation_records(client)
                 d.append(acquire.mean(rec, "defl_um") / 1000.0)
                 g = gauge.record(rec)
                 loading.append(load)
+                duties.append(sign * duty)
                 progress_line("  %s side, round %d/%d %s duty %+5d: d %+.3f mm, gauge %.2f N" % (
                     side, r + 1, opts.rounds, "loading  " if load else "unloading", sign * duty, d[-1], g))
+                if load and r == 0:
+                    levels.append(duty)
+                    if abs(g - gauge.tares[-1]) >= opts.force_range or abs(d[-1]) >= CAVITY_NEAR_MM:
+                        break
         gauge.tare(move=True)
     end_progress()
     client.call("stop")
@@ -145,7 +161,57 @@ def force_points(session, rig, prompter, opts, side="high"):
     # Loading against the high-side gauge makes the force fall (more negative): the block slides
     # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
     s = np.where(loading, 1.0, -1.0) * -SIDES[side]
-    return np.array(d), gauge.forces(), s, loading, gauge.tares
+    return np.array(d), gauge.forces(), s, loading, gauge.tares, np.array(duties, dtype=float)
+
+
+def _levels_until(step, cap):
+    """Loading duties step, 2 step, ... up to cap: the first round stops early at the force range."""
+    n = max(1, int(cap // step))
+    return [step * (i + 1) for i in range(n)]
+
+
+DEFL_SE_UM = 1.5  # the standard error a point's mean deformation is averaged down to
+POINT_S = (0.3, 1.5)  # ... over at least and at most this long (board seconds)
+
+
+def deformation_records(client):
+    """Telemetry at rest for one force point: 0.3 s, and more until the mean deformation's
+    standard error is DEFL_SE_UM (1.5 s at most). Noisy pots on a stiff spring otherwise put
+    their noise into F0: 5 LSB of pot noise left 5 um on a 0.3 s mean, 0.1 N at 19 N/mm."""
+    rec = acquire.collect(client, POINT_S[0])
+    while len(rec) > 2 and len(rec) < POINT_S[1] * acquire.STREAM_HZ:
+        d = rec[:, acquire.COL["defl_um"]].astype(float)
+        if np.std(d) / np.sqrt(len(d)) <= DEFL_SE_UM:
+            break
+        rec = np.concatenate([rec, acquire.collect(client, POINT_S[0])])
+    return rec
+
+
+@dataclass
+class Drive:
+    n_per_duty: float  # force the stalled motor holds per duty count, N
+    offset_n: float  # force at zero duty by the straight line (negative: the screw's own friction)
+    ff_duty: int  # the duty that holds the spring at the block's friction force (0: none)
+    why: str = ""
+
+
+def fit_drive(duty, spring_n, friction_n):
+    """The stalled motor's force per duty, from the force step's points (at each one the motor
+    holds the spring still, so its force is the spring's), and the duty that holds the spring at
+    the friction force: (h - offset) / slope."""
+    duty = np.abs(np.asarray(duty, dtype=float))
+    force = np.abs(np.asarray(spring_n, dtype=float))
+    if len(duty) < 3 or np.ptp(duty) <= 0:
+        return Drive(0.0, 0.0, 0, "too few duty levels")
+    slope, offset = np.polyfit(duty, force, 1)
+    if not slope > 0:
+        return Drive(float(slope), float(offset), 0, "the force did not grow with the duty")
+    if friction_n <= 0:
+        return Drive(float(slope), float(offset), 0, "no friction identified")
+    ff = int(round((friction_n - min(offset, 0.0)) / slope))
+    if not 0 < ff <= FF_DUTY_MAX:
+        return Drive(float(slope), float(offset), 0, "%d duty is outside 1..%d" % (ff, FF_DUTY_MAX))
+    return Drive(float(slope), float(offset), ff)
 
 
 def _poly_text(c, var):
@@ -166,57 +232,71 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     rig.no_load()
     d, f, s, loading = (np.concatenate([p[i] for p in parts]) for i in range(4))
     tares = [t for p in parts for t in p[4]]
+    duty = np.concatenate([p[5] for p in parts])
     taut = np.abs(f) > TAUT_N
     if np.count_nonzero(taut) < 6:
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
     fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
-    plain = fit_force(dt, ft, st, fit.order_f, friction=False)  # what the paper's fit leaves
+    drive = fit_drive(duty[taut], ft - fit.friction_n * st, fit.friction_n)
+    plain = fit_force(dt, ft, st, fit.order_f, friction=False, tables=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
                hysteresis_n(dt[ft > 0], ft[ft > 0], lt[ft > 0], fit.order_f) if np.any(ft > 0) else 0.0)
     lines = [
         "force: %d points (%d taut), gauge %s, tares %s N (interpolated in time: the zero drifts), d %.3f..%.3f mm, "
         "F0 %.2f..%.2f N" % (len(d), len(dt), " and ".join(sides), ", ".join("%.2f" % t for t in tares), dt.min(), dt.max(),
                              ft.min(), ft.max()),
-        "force: F0(d) = %s  (N, mm)" % _poly_text(fit.coeffs_f, "d"),
+        "force: F0(d) = %s  (N, mm)" % _poly_text(fit.coeffs_f, "d") if fit.kind == "poly" else
+        "force: F0(d) is a %d-knot table (cross-validated rms %.3f N against %.3f N for the best polynomial): "
+        "d %s mm -> F0 %s N" % (len(fit.knots_d), min(fit.table_scores.values()), min(fit.scores.values()),
+                              ", ".join("%.3f" % v for v in fit.knots_d), ", ".join("%.2f" % v for v in fit.knots_f)),
         "force: block friction h = %.3f N; fit rms %.3f N, max %.3f N (without the friction term: rms %.3f N)" % (
             fit.friction_n, fit.rms_n, fit.max_n, plain.rms_n) if opts.friction else
         "force: no friction term (--no-friction); fit rms %.3f N, max %.3f N" % (fit.rms_n, fit.max_n),
-        "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (_poly_text(fit.coeffs_d, "F"), 1000 * fit.rms_d_mm),
+        "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (
+            _poly_text(fit.coeffs_d, "F") if fit.kind == "poly" else "the table's inverse", 1000 * fit.rms_d_mm),
         "force: loading/unloading hysteresis %.3f N (largest gap between the two fits)" % hyst,
         "force: cross-validated rms by order: " + ", ".join("%d: %.3f N" % kv for kv in fit.scores.items()),
+        "force: the motor holds %.2f N per 1000 duty at stall (%+.2f N at zero duty): %d duty holds the spring at the "
+        "friction force (position control adds it to break the block free)" % (
+            1000 * drive.n_per_duty, drive.offset_n, drive.ff_duty) if drive.ff_duty else
+        "force: no friction feed-forward for position control (%s)" % drive.why,
     ]
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
     stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
     sections = {
-        "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
-        "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
+        "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f) if fit.kind == "poly" else
+        force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"), stats_f),
+        "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d) if fit.kind == "poly" else
+        force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"), stats_d),
         # always written, so that a --no-friction run also replaces an older friction section
-        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt))}),
+        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt)),
+                                                      "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
+                                     ff_duty=drive.ff_duty),
     }
     png = opts.out_dir / "calibration-force.png"
     plot_force(png, d, f, s, fit)
     data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "order": fit.order_f,
-            "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d,
+            "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d, "kind": fit.kind,
+            "knots_d": fit.knots_d, "knots_f": fit.knots_f,
             "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,
             "sides": sides}
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)
 
 
 def plot_force(path, d, f, s, fit):
-    import matplotlib
+    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 6.5), sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
+    fig = Figure(figsize=(7, 6.5))
+    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
     down = s > 0
     ax.plot(d[down], f[down], "v", color="tab:red", ms=4, label="force fell (block slid toward 0 mm)")
     ax.plot(d[~down], f[~down], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
     grid = np.linspace(np.min(d), np.max(d), 200)
-    spring = np.polyval(fit.coeffs_f, grid)
-    ax.plot(grid, spring, "k-", lw=1, label="F0(d), order %d (spring)" % fit.order_f)
+    spring = fit.f0(grid)
+    ax.plot(grid, spring, "k-", lw=1, label="F0(d), %s (spring)" % (
+        "order %d" % fit.order_f if fit.kind == "poly" else "%d-knot table" % len(fit.knots_d)))
     if fit.friction_n > 0:
         ax.fill_between(grid, spring - fit.friction_n, spring + fit.friction_n, color="0.8", alpha=0.6,
                         label="friction band +-%.2f N" % fit.friction_n)
@@ -224,7 +304,7 @@ def plot_force(path, d, f, s, fit):
     ax.set_title("Force identification (paper eqs. 8-9, with the block's friction)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    resid = f - np.polyval(fit.coeffs_f, d) - fit.friction_n * s
+    resid = f - fit.f0(d) - fit.friction_n * s
     ax2.plot(d, resid * 1000, ".", color="tab:green", ms=4)
     ax2.axhline(0, color="0.5", lw=0.6)
     ax2.set_xlabel("spring deformation d = D1* - D2 (mm)")
@@ -232,5 +312,4 @@ def plot_force(path, d, f, s, fit):
     ax2.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
-    plt.close(fig)
     return path

@@ -13,21 +13,53 @@ import time
 
 import numpy as np
 
-from host.calibration.file import pot_section
+from firmware.calibration import STROKE_SECTION, convert
+from host.calibration.file import pot_section, stroke_section
 from host.errors import UserError
 from host.guided import acquire, checks
 from host.guided.outcome import StepOutcome
 from host.guided.rig import reference_mm
 
 RAW = {"pot1": "raw1", "pot2": "raw2"}
+STROKE_MIDDLE_MM = 30.0  # the middle of the block's 0-60 mm stroke
 
 
 def adc_sweep(session, rig, pot, duty, ref_scale, say):
+    """(raw, reference mm, direction, stops): the sweep, and the records still at each end stop.
+
+    The still records join the sweep: the pot and the reference are read together there too,
+    and without them a curve's ends are extrapolations (0.1-0.2 mm off at the stops on the
+    simulated pots, where the moving part of the sweep ends a few codes short of them)."""
     rig.mount_reference(pot)
-    records, direction = acquire.sweep(session.client, duty, say)
+    stops = {}
+    records, direction = acquire.sweep(session.client, duty, say, stops=stops)
+    records = np.concatenate([records, stops["high"], stops["low"]])
+    direction = np.concatenate([direction, np.ones(len(stops["high"])), -np.ones(len(stops["low"]))])
     raw = records[:, acquire.COL[RAW[pot]]].astype(float)
     ref = reference_mm(records[:, acquire.COL["raw_ref"]], session.board["adc_bits"], ref_scale)
-    return raw, ref, direction
+    return raw, ref, direction, stops
+
+
+def end_stops(stops, adc_bits, ref_scale):
+    """(low, high) reference mm and the median pot-2 code at the block's two end stops, from
+    the records standing still at each end of pot 2's sweep (the reference is on pot 2 then)."""
+    out = {}
+    for end in ("low", "high"):
+        rec = stops.get(end)
+        if rec is None or len(rec) == 0:
+            return None
+        out[end] = (float(np.median(reference_mm(rec[:, acquire.COL["raw_ref"]], adc_bits, ref_scale))),
+                    int(round(float(np.median(rec[:, acquire.COL["raw2"]])))))
+    return out if out["high"][0] - out["low"][0] > 1.0 else None
+
+
+def stroke_from(ends, offset_mm, pot2_section):
+    """The stroke section: where the block's end stops are in D2, by the firmware's own converter
+    of the new pot 2 curve at the codes read there (what the board will compute at the stops)."""
+    kind, k = pot2_section["kind"], pot2_section["fixed"]
+    lo, hi = (convert(kind, ends[e][1], k) / 1000.0 for e in ("low", "high"))
+    return stroke_section(lo, hi, {"reference_mm": [ends["low"][0], ends["high"][0]], "centre_shift_mm": offset_mm,
+                                   "length_mm": hi - lo})
 
 
 def manual_sweep(session, rig, pot, points, prompter, say):
@@ -35,18 +67,20 @@ def manual_sweep(session, rig, pot, points, prompter, say):
     rig.mount_reference(pot)
     client = session.client
     raws, refs, dirs = [], [], []
+    # the stroke limits open for each motion only: not while the person reads the gauge
     with acquire.open_stroke(client):
         acquire.drive_to_stop(client, -2500)
-        for sign in (1, -1):
-            for i in range(points):
-                if i:
+    for sign in (1, -1):
+        for i in range(points):
+            if i:
+                with acquire.open_stroke(client):
                     pulse = acquire.collect_pulse(client, sign * 2000, 60.0 / points / 25.0)
-                    if acquire.stalled_at_end(pulse):
-                        break
-                rec = acquire.collect(client, 0.3)
-                raws.append(acquire.mean(rec, RAW[pot]))
-                refs.append(prompter.number("Dial gauge reading at stop %d (%s), mm:" % (len(raws), "forward" if sign > 0 else "backward")))
-                dirs.append(sign)
+                if acquire.stalled_at_end(pulse):
+                    break
+            rec = acquire.collect(client, 0.3)
+            raws.append(acquire.mean(rec, RAW[pot]))
+            refs.append(prompter.number("Dial gauge reading at stop %d (%s), mm:" % (len(raws), "forward" if sign > 0 else "backward")))
+            dirs.append(sign)
     return np.array(raws), np.array(refs), np.array(dirs, dtype=float)
 
 
@@ -66,14 +100,34 @@ def calibrate_pots(session, rig, prompter, opts):
     bits = session.board["adc_bits"]
     sections, lines, plots, data = {}, [], [], {}
     all_ok = True
+    swept = {}
     for pot in ("pot1", "pot2"):
         prompter.say("[pots] %s: reference sensor on %s" % (pot, pot))
         t0 = time.monotonic()
         if opts.reference == "manual":
-            raw, ref, direction = manual_sweep(session, rig, pot, opts.manual_points, prompter, prompter.say)
+            swept[pot] = manual_sweep(session, rig, pot, opts.manual_points, prompter, prompter.say) + ({},)
         else:
-            raw, ref, direction = adc_sweep(session, rig, pot, opts.duty, opts.ref_scale, prompter.say)
-        prompter.say("  %d samples in %.1f s" % (len(raw), time.monotonic() - t0))
+            swept[pot] = adc_sweep(session, rig, pot, opts.duty, opts.ref_scale, prompter.say)
+        prompter.say("  %d samples in %.1f s" % (len(swept[pot][0]), time.monotonic() - t0))
+    # The block's frame: the reference's own zero is wherever it was mounted, so positions are
+    # measured from the block's end stops instead, as pot 2's sweep found them with the
+    # reference on it: the middle of the two stops is 30 mm (mounting error on pot 2 moves and
+    # stretches its scale, so the stops need not sit at 0 and 60 mm of the reference). Both pots
+    # take the same shift, so D1 and D2 stay in one frame.
+    ends = end_stops(swept["pot2"][3], bits, opts.ref_scale)
+    offset = 0.0
+    if ends is not None:
+        offset = (ends["low"][0] + ends["high"][0]) / 2.0 - STROKE_MIDDLE_MM
+        lines.append("end stops: the reference read %.3f and %.3f mm at the block's end stops (stroke %.3f mm); "
+                     "positions are shifted by %+.3f mm so that the middle of the stroke is %.0f mm"
+                     % (ends["low"][0], ends["high"][0], ends["high"][0] - ends["low"][0], -offset, STROKE_MIDDLE_MM))
+    else:
+        lines.append("end stops: not measured (%s): positions stay in the reference's own frame and the soft "
+                     "stroke limits are the stroke_min_um/stroke_max_um parameters alone"
+                     % ("manual reference" if opts.reference == "manual" else "pot 2's sweep did not stall at both ends"))
+    for pot in ("pot1", "pot2"):
+        raw, ref, direction, _ = swept[pot]
+        ref = ref - offset
         found, noise, hyst = checks.check_sweep(raw, ref, direction, bits, opts.limits)
         status = session.client.call("status")
         if status.get("faults"):  # e.g. a wiper that lifted: the firmware stopped the motor
@@ -104,4 +158,13 @@ def calibrate_pots(session, rig, prompter, opts):
                          pot, fit.model, fit.order, 1000 * fit.rms, 1000 * fit.max_abs, 1000 * noise, 1000 * hyst,
                          "yes" if fit.monotone else "NO", fixed["max_error"], "; " + reason if reason else ""))
         data[pot] = {"raw": sweep.x, "ref": sweep.y, "direction": sweep.direction, "fit": fit, "noise": noise}
-    return StepOutcome("pots", sections, lines, plots, ok=all_ok and len(sections) == 2, data=data)
+    if ends is not None and "pot2" in sections:
+        try:
+            sections[STROKE_SECTION] = stroke_from(ends, offset, sections["pot2"])
+            lo, hi = sections[STROKE_SECTION]["end_stops_mm"]
+            lines.append("end stops in D2: %.3f and %.3f mm (the firmware keeps its soft limits stop_margin_um inside)"
+                         % (lo, hi))
+        except UserError as exc:
+            lines.append("end stops: %s" % exc)
+    data["end_stops"] = None if ends is None else {"reference_mm": [ends["low"][0], ends["high"][0]], "shift_mm": -offset}
+    return StepOutcome("pots", sections, lines, plots, ok=all_ok and "pot1" in sections and "pot2" in sections, data=data)

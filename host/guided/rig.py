@@ -60,18 +60,27 @@ class Rig:
     def no_load(self):
         self._do("Unhook the force gauge: the output block must run free end to end (no load).", load={"kind": "none"})
 
-    def hook_gauge(self, anchor_mm, side="high"):
+    def hook_gauge(self, anchor_mm, side="high", gap_mm=None):
         """side "high": the gauge sits toward 60 mm and the block pulls it toward 0 mm (negative
-        actuator forces, the paper's rig); "low": toward 0 mm, the block pulls it toward 60 mm."""
+        actuator forces, the paper's rig); "low": toward 0 mm, the block pulls it toward 60 mm.
+        With `gap_mm` the block is gap_mm on the slack side of the anchor now, and the person
+        hooks the fibre to go taut after the block has moved that far (a person sees where the
+        block is, not its true position in mm: on the virtual rig the anchor follows from the
+        block's place)."""
         where = ("on the 60 mm side (the block pulls it toward 0 mm)" if side == "high"
                  else "on the 0 mm side (the block pulls it toward 60 mm)")
         change = {"load": {"kind": "gauge", "anchor_mm": float(anchor_mm), "side": side}}
+        if gap_mm is not None:
+            change["load"]["gap_mm"] = float(gap_mm)
         wire = ""
         if self.gauge == "adc":
             change["reference"] = "gauge"
             wire = " Wire the gauge's analog output to the board's reference input."
+        taut = ("taut at D2 = %.1f mm" % anchor_mm if gap_mm is None else
+                "taut once the block has moved %.1f mm from here toward %s (D2 = %.1f mm)"
+                % (gap_mm, "0 mm" if side == "high" else "60 mm", anchor_mm))
         self._do("Hook the force gauge to the output block through the fibre, %s, anchored so it goes "
-                 "taut at D2 = %.0f mm.%s" % (where, anchor_mm, wire), **change)
+                 "%s.%s" % (where, taut, wire), **change)
 
     def read_gauge_n(self, client, records=None, seconds=0.3):
         """The gauge's reading in N: from its display, or (--gauge adc) the mean of the reference

@@ -4,7 +4,8 @@ gain sets, judge each (host/fitting/step_response.py) and pick the best.
 A trial holds the start value until it has settled, then streams telemetry, changes the target
 by one step and records for a fixed span of the board's own time (BoardTime). Between trials
 and at the end the motor stops; the gains in force before tuning are put back unless the caller
-keeps the recommended ones (`keep`). Times are the board's: on a real board the wall clock's.
+keeps the recommended ones (`keep`); a trial's gains are temporary values, which the firmware
+itself puts back if the host goes silent. Times are the board's: on a real board the wall clock's.
 """
 
 import itertools
@@ -106,8 +107,8 @@ def tune(board, mode, start, step, duration_s, band, grid=None, keep=False, prog
     chosen = None
     try:
         for i, gains in enumerate(sets):
-            for n, v in gains.items():
-                board.call("set", n, int(v))
+            for n, v in gains.items():  # temporary: the firmware puts them back if this host dies
+                board.call("set", n, int(v), "temp")
             if progress:
                 progress(i, len(sets), gains)
             try:

@@ -7,13 +7,17 @@ argument's kind, as the board will), sends one command line and waits for its re
 resending the same line on timeout (the firmware answers a repeated line with its cached reply,
 so a retry never runs a command twice). Telemetry frames that arrive meanwhile are queued for `frames()`.
 Which port to open (a device, `auto`, `sim`) is host/link/connect.py's business.
+
+Slow is not silent: on a busy computer a virtual board (or the host itself) can be starved for
+a second or two, so a request keeps resending for PATIENCE_S before it gives up, and the error
+then says whether anything at all came from the board meanwhile ("the board stopped answering")
+or it kept sending other data (overloaded, not dead).
 """
 
 import collections
 import random
 import time
 
-import numpy as np
 import serial
 
 from firmware import protocol as P
@@ -21,6 +25,7 @@ from host.errors import UserError
 from host.link.frames import FrameDecoder
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
+PATIENCE_S = 8.0  # wall-clock seconds a request resends before the board counts as not answering
 
 
 class BoardError(UserError):
@@ -28,10 +33,13 @@ class BoardError(UserError):
 
 
 class BoardClient:
-    def __init__(self, port, timeout=0.5, retries=3, check=True, require_calibration=False, start_firmware=True):
+    def __init__(self, port, timeout=0.5, retries=None, check=True, require_calibration=False, start_firmware=True,
+                 patience=PATIENCE_S):
         self.port = port
         self.timeout = timeout
-        self.retries = retries
+        self.retries = retries  # None: resend every `timeout` until `patience` seconds have passed
+        self.patience = patience
+        self.received = 0  # bytes read from the board so far
         self.decoder = FrameDecoder()
         self.telemetry = collections.deque()
         self.hellos = 0
@@ -116,6 +124,7 @@ class BoardClient:
 
     def _read_frames(self):
         data = self.serial.read(max(1, self.serial.in_waiting))
+        self.received += len(data)
         frames = self.decoder.feed(data) if data else []
         for frame in frames:
             if frame.type == P.T_TELEMETRY:
@@ -126,15 +135,21 @@ class BoardClient:
 
     def request(self, name, *args, timeout=None, retries=None):
         """Send one command; return the result of its ok frame, raise BoardError on an error
-        frame and TimeoutError when no reply came after all retries. The command and its
-        arguments are checked against the board's interface (firmware.protocol.COMMANDS) first:
-        ValueError for one the board would refuse, before anything is sent."""
+        frame and TimeoutError when no reply came: after `retries` resends when given, else
+        after resending every `timeout` for the client's patience (see the module docstring).
+        The command and its arguments are checked against the board's interface
+        (firmware.protocol.COMMANDS) first: ValueError for one the board would refuse, before
+        anything is sent."""
         P.arguments(name, args)
         seq = self._next_seq()
         line = P.format_command(seq, name, *args)
         timeout = self.timeout if timeout is None else timeout
-        tries = (self.retries if retries is None else retries) + 1
-        for _ in range(tries):
+        retries = self.retries if retries is None else retries
+        start, heard = time.monotonic(), self.received
+        tries = 0
+        while retries is not None and tries <= retries or retries is None and (
+                tries == 0 or time.monotonic() - start < self.patience):
+            tries += 1
             self.serial.write(line)
             deadline = time.monotonic() + timeout
             while time.monotonic() < deadline:
@@ -145,7 +160,12 @@ class BoardClient:
                         raise BoardError("board refused %s: %s" % (name, frame.text()))
                     self._last_heartbeat = time.monotonic()
                     return frame.json()
-        raise TimeoutError("no reply to %s from %s" % (name, self.port))
+        waited = time.monotonic() - start
+        if self.received == heard:
+            raise TimeoutError("the board stopped answering: no reply to %s from %s in %.0f s, and nothing else came "
+                               "from it" % (name, self.port, waited))
+        raise TimeoutError("no reply to %s from %s in %.0f s, though it kept sending (%d bytes): the board or this "
+                           "computer is overloaded" % (name, self.port, waited, self.received - heard))
 
     def call(self, name, *args, **kw):
         """request() with a UserError instead of TimeoutError (for CLI commands)."""

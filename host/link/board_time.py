@@ -25,9 +25,17 @@ class BoardTime:
 
     def add(self, rows):
         """Count the records `rows` (int array, columns P.FIELDS); returns the seconds so far."""
-        if len(rows):
-            t = rows[:, _T_COL].astype(np.int64)
-            steps = np.diff(t, prepend=t[0] if self._last is None else self._last) % _T_WRAP
-            self.seconds += float(steps[steps < _T_JUMP_US].sum()) / 1e6
-            self._last = int(t[-1])
+        self.stamps(rows)
         return self.seconds
+
+    def stamps(self, rows):
+        """Count the records `rows` as add() does; returns each one's board time, in seconds."""
+        if not len(rows):
+            return np.zeros(0)
+        t = rows[:, _T_COL].astype(np.int64)
+        steps = np.diff(t, prepend=t[0] if self._last is None else self._last) % _T_WRAP
+        steps[steps >= _T_JUMP_US] = 0
+        times = self.seconds + np.cumsum(steps) / 1e6
+        self.seconds = float(times[-1])
+        self._last = int(t[-1])
+        return times

@@ -91,6 +91,11 @@ class open_board:
         self.options = client_options
         self.client = None
 
+    @property
+    def virtual(self):
+        """The virtual board behind port `sim`, else None."""
+        return self.where.virtual
+
     def __enter__(self):
         self.where.__enter__()
         try:

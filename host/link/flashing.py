@@ -158,6 +158,11 @@ def build(board, out_dir):
     return files
 
 
+class BoardSilent(UserError):
+    """mpremote got no answer in its time: the board stopped answering (or the computer is too
+    busy to run it); what was under way is said in the message."""
+
+
 def mpremote(port, *commands, timeout=120):
     """Run `mpremote connect PORT <commands...>`; commands are lists joined with '+'."""
     args = [mpremote_executable(), "connect", port]
@@ -165,7 +170,10 @@ def mpremote(port, *commands, timeout=120):
         if i:
             args.append("+")
         args += list(cmd)
-    proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
+    try:
+        proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        raise BoardSilent("mpremote on %s got no answer in %d s: the board stopped answering" % (port, timeout)) from None
     if proc.returncode:
         msg = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["exit %d" % proc.returncode]
         raise UserError("mpremote on %s failed: %s" % (port, msg[0]))
@@ -179,10 +187,11 @@ def file_crc(path):
 def check_files(board_path, calibration=None):
     """The firmware's own checks on every file flash would install, before the board is touched:
     the board file (firmware.board_config), the calibration (firmware.calibration: size, CRC,
-    every section's layout) and that the calibration was made for this board and ADC width."""
+    every section's layout), that it was made for this board and ADC width, and what the boot
+    checks of its curves (firmware.measurement: each pot's position grows with the code)."""
     from firmware.board_config import BoardError, load_board
     from firmware.calibration import CalibrationError, load_calibration
-    from firmware.measurement import adc_bits_of
+    from firmware.measurement import Measurement, board_problem
 
     try:
         board = load_board(str(board_path))
@@ -198,23 +207,26 @@ def check_files(board_path, calibration=None):
         raise UserError("calibration %s refused (the board keeps its own): %s" % (calibration, exc)) from None
     except (RecursionError, MemoryError, ValueError, TypeError, KeyError) as exc:
         raise UserError("calibration %s refused (the board keeps its own): unreadable (%s)" % (calibration, type(exc).__name__)) from None
-    if cal.board not in (None, board["name"]):
-        raise UserError("calibration %s was made for board %s, not %s" % (calibration, cal.board, board["name"]))
-    bits = {adc_bits_of(*cal.pot1), adc_bits_of(*cal.pot2)}
-    if bits != {board["adc_bits"]}:
-        raise UserError("calibration %s is for a %s-bit ADC, board %s has %d bits"
-                        % (calibration, "/".join(map(str, sorted(bits))), board["name"], board["adc_bits"]))
+    why = board_problem(cal, board)
+    if why is None:
+        try:
+            Measurement(cal, tabulate=False)
+        except ValueError as exc:
+            why = str(exc)
+    if why is not None:
+        raise UserError("calibration %s refused (the board keeps its own): %s" % (calibration, why))
     return board
 
 
 def identify(port):
     """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
-    from host.link.connect import ask_firmware
+    from host.link.board_client import BoardClient
 
-    try:
-        return ask_firmware(port).get("board")
-    except (UserError, OSError):
-        return None
+    with BoardClient(port, check=False) as client:  # a missing or busy port is for the user to fix
+        try:
+            return client.handshake().get("board")
+        except (UserError, OSError):
+            return None
 
 
 def flash(port, board_name="sim", calibration=None, progress=print, replace_board=False, ask_board=True):
@@ -246,7 +258,13 @@ def flash(port, board_name="sim", calibration=None, progress=print, replace_boar
         progress("copying %d files to %s" % (len(files), port))
         cmds = [["exec", _PREPARE % (STAGING, [STAGING] + dirs)]]
         cmds += [["fs", "cp", str(src), ":" + STAGING + "/" + dst] for src, dst in files]
-        mpremote(port, *cmds)
+        try:
+            mpremote(port, *cmds)
+        except UserError as exc:
+            # The copy only fills the staging directory, which the next try empties first, so
+            # it is safe to repeat: a busy computer can starve a virtual board's raw REPL once.
+            progress("copying again (%s)" % exc)
+            mpremote(port, *cmds)
         progress("installing (atomic renames)")
         swaps = [(STAGING + "/" + name, name, any(d.startswith(name + "/") for _, d in files)) for name in live]
         out = mpremote(port, ["exec", _SWAP % (swaps, STAGING)])

@@ -16,15 +16,16 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 # checks: a string there costs the board heap); a command without its text here fails render().
 COMMAND_TEXT = {
     "status": ("object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
-               "step_us_max, overruns, period_us, stroke_um, params_changed, params_saved, params_file_error, "
-               "params_restored, timer, interpreter, mpy, last_exit, protocol",
+               "step_us_max, overruns, period_us, stroke_um, end_stops_um, params_changed, params_saved, "
+               "params_file_error, params_restored, params_temporary, timer, interpreter, mpy, last_exit, protocol",
                "identify the firmware and report its state (the handshake)"),
     "stop": ("null", "motor off, mode idle"),
     "mode": ("null", "switch mode"),
     "target": ("null", "set the target of the current mode: um (position), mN (force), signed duty (open_loop)"),
     "stream": ("object: hz", "start telemetry at hz or stop it"),
     "get": ("int", "read a controller parameter"),
-    "set": ("null", "write a controller parameter"),
+    "set": ("null", "write a controller parameter; `temp`: for the command that sets it only, restored to its value "
+            "before once the host is silent for host_timeout_ms (a plain `set` keeps it, and ends a temporary value)"),
     "params": ("list of [name, value, default, min, max, unit]",
                "the parameters `get`/`set` accept, with the values in force and their table"),
     "save": ("object: file, saved (names that differ from the defaults)",
@@ -152,6 +153,8 @@ def _argument(arg):
         text = "a mode (below)"
     elif kind is P.PARAM_NAMES:
         text = "a parameter (below)"
+    elif default is False:  # a flag word: present or left out
+        return "`%s` (may be left out)" % kind[0]
     else:
         text = " or ".join(kind)
     if default is not P.REQUIRED:

@@ -1,8 +1,10 @@
 """Record board telemetry to CSV: one row per record, columns = firmware.protocol.FIELDS.
 
-`record(board, path, seconds, rate)` streams from a BoardClient, writes rows as they arrive (so a
-Ctrl-C or a lost port still leaves a complete file up to the last frame), keeps the host timeout
-away with heartbeats, and returns a `LogSummary` (samples, rate, lost frames, board drops).
+`Recording(board, path, rate)` streams from a BoardClient while a motion runs through it (one
+connection for both), or alone with `pump()`; `record(board, path, seconds, rate)` does the
+latter. Rows are written as they arrive (so a Ctrl-C or a lost port still leaves a complete file
+up to the last frame), heartbeats keep the host timeout away, and a `LogSummary` says what came
+(samples, rate, lost frames counted by sequence number, board drops).
 Beside the CSV (a plain table any tool reads) it writes RUN.meta.json: the board, firmware and
 protocol version, calibration CRC, loop period, stream rate, the date, each column's unit, and
 the code tables of the `mode` and `faults` columns.
@@ -66,61 +68,135 @@ def metadata_path(path):
 
 def metadata(status, rate):
     """What a log's numbers need to be read later: from the board's status at the start."""
+    from host import __version__ as host_version
+
     crc = status.get("calibration_crc")
+    period = status.get("period_us")
     return {
         "date": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
         "board": status.get("board"), "firmware": status.get("version"), "protocol": status.get("protocol"),
         "interpreter": status.get("interpreter"),
         "calibration_crc": None if crc is None else "%08x" % (crc & 0xFFFFFFFF),
         "calibration_error": status.get("calibration_error"),
-        "loop_period_us": status.get("period_us"), "stream_hz": rate,
+        "loop_period_us": period, "loop_hz": round(1e6 / period, 3) if period else None, "stream_hz": rate,
+        "host": host_version,
         "columns": {name: UNITS[name] for name in FIELDS},
         "modes": {str(i): name for i, name in enumerate(MODES)},
         "faults": {str(bit): name for bit, name in FAULT_NAMES},
     }
 
 
-def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1.0):
-    """Stream telemetry at `rate` Hz into CSV `path` for `seconds` (None: until Ctrl-C); the
-    metadata go to RUN.meta.json first."""
-    meta = metadata(board.call("status"), rate)
-    metadata_path(path).write_text(json.dumps(meta, indent=1) + "\n")
-    summary = LogSummary()
-    decoder = board.decoder
-    lost0, crc0, skip0 = decoder.lost_frames, decoder.crc_errors, decoder.skipped_bytes
-    with open(path, "w", newline="") as fh:
-        writer = csv.writer(fh)
-        writer.writerow(FIELDS)
-        board.start_stream(rate)
-        start = time.monotonic()
-        next_report = start + progress_every
+class Recording:
+    """Telemetry streamed at `rate` Hz into CSV `path` while other code drives the board through
+    this object: one connection serves a motion and its log.
+
+    It stands in for the BoardClient (what it does not define goes to the client). Code that
+    streams for its own purposes (settle() during a move or a force hold) calls start_stream,
+    frames and stop_stream as usual, but the stream stays on at the recording's rate, and every
+    frame handed out by frames() is first written to the CSV and given to `on_rows(records)`.
+    `stop` (a threading.Event) set from another thread makes the next frames() raise
+    KeyboardInterrupt, so whatever drives the board ends through its usual clean-up (motor off).
+    Rows are written as they arrive, so a Ctrl-C or a lost port still leaves a complete file."""
+
+    def __init__(self, client, path, rate=1000, on_rows=None, stop=None):
+        self.client = client
+        self.path = path
+        self.rate = rate
+        self.on_rows = on_rows
+        self.stop = stop
+        self.summary = LogSummary()
+        self._file = self._writer = None
+
+    def __getattr__(self, name):
+        return getattr(self.client, name)
+
+    def __enter__(self):
+        meta = metadata(self.client.call("status"), self.rate)
+        metadata_path(self.path).write_text(json.dumps(meta, indent=1) + "\n")
+        decoder = self.client.decoder
+        self._counts0 = decoder.lost_frames, decoder.crc_errors, decoder.skipped_bytes
+        self._file = open(self.path, "w", newline="")
+        self._writer = csv.writer(self._file)
+        self._writer.writerow(FIELDS)
+        self.client.start_stream(self.rate)
+        self._start = time.monotonic()
+        return self
+
+    def frames(self, timeout=0.1):
+        if self.stop is not None and self.stop.is_set():
+            raise KeyboardInterrupt
+        frames = self.client.frames(timeout=timeout)
+        for frame in frames:
+            self._write(frame)
+        return frames
+
+    def start_stream(self, hz):
+        """The stream is on already, at the recording's rate: what came so far goes to the file,
+        and the caller sees only frames from now on."""
+        self.frames(timeout=0)
+        return {"hz": self.rate}
+
+    def stop_stream(self):
+        return {"hz": self.rate}  # stays on until the recording ends
+
+    def _write(self, frame):
+        rows = frame.records()
+        self._writer.writerows(rows.tolist())
+        self.summary.samples += len(rows)
+        self.summary.board_dropped = frame.dropped()
+        if self.on_rows is not None:
+            self.on_rows(rows)
+
+    def _update(self):
+        decoder = self.client.decoder
+        self.summary.seconds = time.monotonic() - self._start
+        self.summary.lost_frames = decoder.lost_frames - self._counts0[0]
+        self.summary.crc_errors = decoder.crc_errors - self._counts0[1]
+        self.summary.skipped_bytes = decoder.skipped_bytes - self._counts0[2]
+
+    def pump(self, seconds=None, progress=None, progress_every=1.0):
+        """Only record, for `seconds` (None: until Ctrl-C, which ends it cleanly); heartbeats
+        keep the firmware's host timeout away."""
+        next_report = time.monotonic() + progress_every
         try:
-            while seconds is None or time.monotonic() - start < seconds:
-                board.heartbeat_if_due()
-                for frame in board.frames(timeout=0.05):
-                    rows = frame.records()
-                    writer.writerows(rows.tolist())
-                    summary.samples += len(rows)
-                    summary.board_dropped = frame.dropped()
+            while seconds is None or time.monotonic() - self._start < seconds:
+                self.client.heartbeat_if_due()
+                self.frames(timeout=0.05)
                 now = time.monotonic()
-                summary.seconds = now - start
-                summary.lost_frames = decoder.lost_frames - lost0
                 if progress and now >= next_report:
                     next_report += progress_every
-                    progress(summary)
+                    self._update()
+                    progress(self.summary)
         except KeyboardInterrupt:
-            summary.interrupted = True
+            self.summary.interrupted = True
+        return self.summary
+
+    def __exit__(self, exc_type, *exc):
+        if exc_type is KeyboardInterrupt:
+            self.summary.interrupted = True
+        try:
+            self.client.call("stream", "off")
+            while True:  # the records sent before the board heard it
+                frames = self.client.frames(timeout=0.05)
+                if not frames:
+                    break
+                for frame in frames:
+                    self._write(frame)
+        except Exception:
+            pass  # the file is what matters; a vanished port must not lose it
         finally:
-            summary.seconds = time.monotonic() - start
-            try:
-                board.stop_stream()
-            except Exception:
-                pass  # the file is what matters; a vanished port must not lose it
-            summary.lost_frames = decoder.lost_frames - lost0
-            summary.crc_errors = decoder.crc_errors - crc0
-            summary.skipped_bytes = decoder.skipped_bytes - skip0
-            fh.flush()
-    return summary
+            for frame in self.client.telemetry:
+                self._write(frame)
+            self.client.telemetry.clear()
+            self._update()
+            self._file.close()
+
+def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1.0):
+    """Stream telemetry at `rate` Hz into CSV `path` for `seconds` (None: until Ctrl-C); the
+    metadata go to RUN.meta.json first. Returns the LogSummary."""
+    with Recording(board, path, rate) as recording:
+        recording.pump(seconds, progress, progress_every)
+    return recording.summary
 
 
 def load(path):

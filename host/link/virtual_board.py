@@ -14,7 +14,8 @@ the simulated world at boot and within ~100 ms of a change (`set_load`).
 Where a board soft-resets, the unix port exits; the relay then prints "MPY: soft reboot" and starts
 micropython again: into the raw REPL when the reset came from the raw REPL (as a board does, which
 is what mpremote expects), else booting main.py. Output nobody reads is dropped, as a USB CDC port
-with no host attached does, so the firmware never blocks on a missing client.
+with no host attached does, so the firmware never blocks on a missing client. Text reaches the
+client with a board's \r\n line endings, frames byte for byte (host/link/board_line_endings.py).
 """
 
 import json
@@ -36,6 +37,8 @@ try:  # POSIX only: a pseudo-terminal. Everything else in the host works without
 except ImportError:  # Windows
     fcntl = termios = tty = None
 
+from firmware.protocol import SYNC
+from host.link.board_line_endings import BoardLineEndings
 from host.errors import UserError, install_hint
 
 REPO = Path(__file__).resolve().parents[2]
@@ -44,6 +47,13 @@ MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.j
 HEAP = "4M"
 _RAW_BANNER = b"raw REPL; CTRL-B to exit"
 _FRIENDLY_PROMPT = b">>> "
+
+# A board keeps what the host sends while it boots; a Ctrl-C that reached micropython before it
+# installed its SIGINT handler would kill it instead of interrupting main.py, and bytes that
+# arrive before its REPL prompt are flushed. So the relay holds the client's bytes until the new
+# process is ready (_ready_for_input), or for at most this long (a main.py that runs silently
+# must still get its Ctrl-C).
+BOOT_INPUT_HOLD_S = 1.0
 
 RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
 
@@ -120,6 +130,10 @@ LOAD_METAVAR = "none|gauge[@MM]|gauge-low[@MM]|constant:N"
 _GAUGE_SIDES = {"gauge": "high", "gauge-low": "low"}
 
 
+STROKE_MM = 60  # where a gauge's fibre can go taut: somewhere along the stroke
+CONSTANT_LOAD_MAX_N = 100  # several times what the actuator can push; beyond it the model's numbers run away
+
+
 def parse_load(text):
     """`none`, `gauge[@MM]`, `gauge-low[@MM]` or `constant:N` -> the rig.json load dict (bench_rig.apply)."""
     text = str(text).strip()
@@ -131,22 +145,28 @@ def parse_load(text):
     if number is None or math.isfinite(number):
         if kind == "none" and not sep:
             return {"kind": "none"}
-        if kind in _GAUGE_SIDES:
+        if kind in _GAUGE_SIDES and (not sep or 0 <= number <= STROKE_MM):
             load = {"kind": "gauge", "side": _GAUGE_SIDES[kind]}
             if sep:
                 load["anchor_mm"] = number
             return load
-        if kind == "constant" and sep:
+        if kind == "constant" and sep and abs(number) <= CONSTANT_LOAD_MAX_N:
             return {"kind": "constant", "force_n": number}
-    raise ValueError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (e.g. gauge@45, constant:-2.5), "
-                     "not %r" % text)
+    raise ValueError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (MM within 0..%g, N within +-%g; "
+                     "e.g. gauge@45, constant:-2.5), not %r" % (STROKE_MM, CONSTANT_LOAD_MAX_N, text))
 
 
 def _set_pty_mode(fd):
-    """Raw bytes both ways (no CR/LF translation, no echo) but Ctrl-C still raises SIGINT."""
+    """Raw bytes both ways (no CR/LF translation, no echo) but Ctrl-C still raises SIGINT, as
+    on a board; Ctrl-\\ and Ctrl-Z are plain bytes there, so they must not quit or stop
+    micropython here (the terminal's other signal characters are switched off)."""
     tty.setraw(fd)
     attrs = termios.tcgetattr(fd)
     attrs[3] |= termios.ISIG
+    off = bytes([os.fpathconf(fd, "PC_VDISABLE") & 0xFF])
+    for name in ("VQUIT", "VSUSP", "VDSUSP"):
+        if hasattr(termios, name):
+            attrs[6][getattr(termios, name)] = off
     termios.tcsetattr(fd, termios.TCSANOW, attrs)
 
 
@@ -175,6 +195,9 @@ class VirtualBoard:
         self._tail = b""
         self._raw_mode = False
         self._swallow = None  # while booting into the raw REPL: output held back until ">>> "
+        self._line_endings = BoardLineEndings()
+        self._held_input = b""
+        self._hold_input_until = None  # while a new process boots: monotonic time to give up waiting
 
     # -- lifecycle ---------------------------------------------------------------------
     def start(self):
@@ -249,6 +272,8 @@ class VirtualBoard:
         self._tail = b""
         self._raw_mode = False
         self._swallow = None if run_main else b""
+        self._line_endings = BoardLineEndings()  # a frame the last process left unfinished is over
+        self._hold_input_until = time.monotonic() + BOOT_INPUT_HOLD_S
         self.boots += 1
 
     def _kill_child(self):
@@ -304,7 +329,7 @@ class VirtualBoard:
                 self._swallow = None
                 os.write(self._inner, b"\x01")
             return
-        self._to_client(data)
+        self._to_client(self._line_endings.feed(data))
 
     def _track_repl_mode(self):
         raw = self._tail.rfind(_RAW_BANNER)
@@ -327,18 +352,22 @@ class VirtualBoard:
                         pass
                 poller.register(self._inner, select.POLLIN)
                 registered_inner = self._inner
-            for fd, _ in poller.poll(100):
+            events = poller.poll(100 if self._hold_input_until is None else 10)
+            if self._held_input and (self._hold_input_until is None or time.monotonic() >= self._hold_input_until):
+                self._hold_input_until = None
+                self._to_child(b"")
+            if not events:
+                text = self._line_endings.flush()
+                if text:
+                    self._to_client(text)
+            for fd, _ in events:
                 if fd == self._master:
                     try:
                         data = os.read(self._master, 4096)
                     except (BlockingIOError, OSError):
                         continue
                     self._client_absent = False
-                    if data and self._inner is not None:
-                        try:
-                            os.write(self._inner, data)
-                        except OSError:
-                            pass
+                    self._to_child(data)
                 elif fd == self._inner:
                     try:
                         data = os.read(self._inner, 65536)
@@ -346,9 +375,31 @@ class VirtualBoard:
                         data = b""
                     if data:
                         self._from_child(data)
+                        if self._hold_input_until is not None and self._ready_for_input(data):
+                            self._hold_input_until = None
+                            self._to_child(b"")
                     else:
                         self._reboot(poller)
                         registered_inner = None
+
+    def _ready_for_input(self, data):
+        """The new process has booted: the firmware sent a frame (its hello), or a REPL prompt is
+        out (the unix port flushes its terminal's input when it starts reading a REPL line, so
+        bytes sent before the prompt would be lost, which a board never does)."""
+        if self._swallow is not None:
+            return False  # still booting into the raw REPL
+        return SYNC in data or self._tail.endswith(_FRIENDLY_PROMPT) or self._tail.endswith(_RAW_BANNER + b"\r\n>")
+
+    def _to_child(self, data):
+        if self._hold_input_until is not None:
+            self._held_input += data
+            return
+        data, self._held_input = self._held_input + data, b""
+        if data and self._inner is not None:
+            try:
+                os.write(self._inner, data)
+            except OSError:
+                pass
 
     def _reboot(self, poller):
         """micropython exited (a soft reset): restart it as a board restarts."""

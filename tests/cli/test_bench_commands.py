@@ -31,7 +31,10 @@ def test_parse_load_takes_the_documented_forms_and_refuses_the_rest():
     assert parse_load("gauge@40.5") == {"kind": "gauge", "side": "high", "anchor_mm": 40.5}
     assert parse_load("gauge-low@20") == {"kind": "gauge", "side": "low", "anchor_mm": 20.0}
     assert parse_load("constant:-2.5") == {"kind": "constant", "force_n": -2.5}
-    for bad in ("", "gauge@", "gauge@x", "gauge:40", "constant", "constant:", "constant:nan", "none:1", "spring", "gaugex", "gauge-high"):
+    assert parse_load("gauge@0") == {"kind": "gauge", "side": "high", "anchor_mm": 0.0}
+    assert parse_load("constant:100") == {"kind": "constant", "force_n": 100.0}
+    for bad in ("", "gauge@", "gauge@x", "gauge:40", "constant", "constant:", "constant:nan", "none:1", "spring", "gaugex", "gauge-high",
+                "gauge@-1e308", "gauge-low@61", "gauge@inf", "constant:1e308", "constant:-101", "constant:-inf"):
         with pytest.raises(ValueError, match=re.escape("load must be none, gauge[@MM], gauge-low[@MM] or constant:N")):
             parse_load(bad)
 
@@ -132,5 +135,5 @@ def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys)
         assert capsys.readouterr().out.strip() == "no latched faults"
         assert cli.main(["status", "--port", port]) == 0
         text = capsys.readouterr().out
-        assert "longest step (us)" in text and "overruns" in text and "soft stroke limits (um)" in text
+        assert "longest step (us)" in text and "overruns" in text and "soft stroke limits on D2 (um)" in text
         assert "latched faults                 none" in text, text

@@ -194,8 +194,10 @@ def _sweep_file(path, raw, ref):
 
 
 def test_fit_out_refuses_what_cannot_be_a_calibration(tmp_path, capsys):
-    """A reference that is not a function of the reading, and numbers near 1e300: one error line,
-    status 2, no file; --force writes the first (it can be exported), never an inf or NaN."""
+    """A reference that is not a function of the reading, and one that falls as the reading
+    rises (the firmware refuses such a curve at boot): one error line, status 2, no file;
+    --force writes them anyway. Numbers near 1e300 are refused with the sweep, --force or not:
+    never an inf or NaN in a file."""
     import numpy as np
 
     from host import cli
@@ -203,14 +205,30 @@ def test_fit_out_refuses_what_cannot_be_a_calibration(tmp_path, capsys):
     rng = np.random.default_rng(1)
     raw = np.sort(rng.integers(100, 3900, 1500))
     scattered = _sweep_file(tmp_path / "scattered.csv", raw, rng.uniform(0, 60, raw.size))
+    falling = _sweep_file(tmp_path / "falling.csv", raw, 60 - raw * 60 / 4000 + rng.normal(0, 0.02, raw.size))
     huge = _sweep_file(tmp_path / "huge.csv", range(100, 3900, 3), [1e300 * r / 4000 for r in range(100, 3900, 3)])
-    for sweep, words in ((scattered, "of the reference's span"), (huge, "not finite")):
+    for sweep, words in ((scattered, "error: not writing"), (scattered, "of the reference's span"),
+                         (falling, "pot_invert"), (huge, "beyond")):
         out = tmp_path / "cal.json"
-        code = cli.main(["fit", sweep, "--out", str(out)])
+        code = cli.main(["fit", sweep, "--out", str(out), "-q"])
         err = capsys.readouterr().err.strip().splitlines()
-        assert code == 2 and err[-1].startswith("error: not writing") and words in err[-1], err
+        assert code == 2 and len(err) == 1 and words in err[0], err
         assert not out.exists()
     assert cli.main(["fit", scattered, "--out", str(tmp_path / "forced.json"), "--force"]) == 0
+    assert cli.main(["fit", falling, "--out", str(tmp_path / "forced-falling.json"), "--force"]) == 0
     code = cli.main(["fit", huge, "--out", str(tmp_path / "forced-huge.json"), "--force"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err[-1].startswith("error: ") and not (tmp_path / "forced-huge.json").exists(), err
+
+
+@pytest.mark.parametrize("command", [["fit"], ["fit", "--model", "pwl", "--out", "x.json"], ["compare", "--orders", "2-4"]])
+def test_numbers_near_1e300_are_one_line_without_warnings(tmp_path, command):
+    """In a real process (pytest would swallow numpy's warnings): stderr is the error line alone."""
+    import subprocess
+    import sys
+
+    huge = _sweep_file(tmp_path / "huge.csv", range(100, 3900, 3), [1e300 * r / 4000 for r in range(100, 3900, 3)])
+    args = command[:1] + [huge] + command[1:] + (["--out", str(tmp_path / "cmp")] if command[0] == "compare" else [])
+    proc = subprocess.run([sys.executable, "-m", "host", *args], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(err) == 1 and err[0].startswith("error: ") and "beyond" in err[0], proc.stderr

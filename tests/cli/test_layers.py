@@ -10,7 +10,7 @@ import host
 
 HOST = Path(host.__file__).resolve().parent
 # lowest first; a module may import from its own layer and the ones before it
-LAYERS = ("fitting", "calibration", "link", "guided", "experiments", "commands")
+LAYERS = ("fitting", "calibration", "link", "guided", "experiments", "api", "commands")
 # outside the layer packages: shared by all (errors, terminal) or the command line itself
 SHARED = {"host", "host.errors", "host.terminal"}
 COMMAND_LINE = {"host.cli", "host.__main__"}
@@ -35,6 +35,7 @@ def host_imports(path):
 
 
 def layer_of(name):
+    """The layer package of host module `name` (host.api, the Python API, is a layer of one module)."""
     parts = name.split(".")
     return parts[1] if len(parts) > 1 and parts[1] in LAYERS else None
 

@@ -43,3 +43,13 @@ def test_a_range_says_what_it_takes():
         ranged(float, 0, 60)("61")
     assert "outside 0..60" in str(info.value)
     assert ranged(int, 1, 16)("12") == 12
+
+
+@pytest.mark.parametrize("command", ["calibrate", "experiment"])
+def test_a_pot_model_the_fitter_does_not_know_is_refused_before_any_board_work(command, capsys):
+    """`--model nan` ended, after the pots had been swept, in a KeyError traceback."""
+    args = [command] + (["paper", "--out", "unused"] if command == "experiment" else []) + \
+        ["--port", "/dev/no-such-port", "--model", "nan"]
+    code = cli.main(args)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "--model" in err[0] and "nan" in err[0], err

@@ -142,16 +142,37 @@ def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
         "nested_small.json": b"[" * 30000 + b"]" * 30000,  # under the size limit: the parser's recursion
         "huge.json": b'{"format": "' + b"x" * 2000000 + b'"}',
         "binary.json": bytes(range(256)) * 16,
+        # a valid envelope and CRC around what the loader's checks must catch
+        "nested_payload.json": schema_1(b"[" * 20000 + b"]" * 20000),
+        "wrong_types.json": schema_1(_json.dumps({"schema": 1, "pot1": {"kind": "pwl", "fixed": ["2", 4.5, None]},
+                                                  "pot2": [1, 2]}).encode()),
+        "huge_numbers.json": schema_1(_json.dumps({"schema": 1, "pot1": {"kind": "bcm3", "fixed": [10**400] * 21},
+                                                   "pot2": {"kind": "pwl", "fixed": [2**64] * 6}}).encode()),
         "missing.json": None,
+        "directory.json": "dir",
     }
     paths = []
     for name, data in files.items():
         p = tmp_path / name
-        if data is not None:
+        if data == "dir":
+            p.mkdir()
+        elif data is not None:
             p.write_bytes(data)
         paths.append(str(p))
     here, there = both("case_boot_survives_any_calibration(None, %r)" % paths)
     assert len(here["why"]) == len(there["why"]) == len(files)
+    for why in (here["why"][-1], there["why"][-1]):  # a directory is not a missing file
+        assert "cannot read" in why and "no calibration file" not in why, why
+
+
+def schema_1(payload):
+    """A schema 1 calibration file around `payload` (bytes), with the right CRC."""
+    import binascii
+    import json as _json
+
+    text = payload.decode()
+    return _json.dumps({"format": "lsea-kit calibration", "schema": 1, "crc32": binascii.crc32(payload) & 0xFFFFFFFF,
+                        "payload": text}).encode()
 
 
 def test_board_main_puts_back_a_calibration_an_interrupted_install_left_aside(tmp_path):
@@ -169,4 +190,43 @@ def test_board_main_puts_back_a_calibration_an_interrupted_install_left_aside(tm
 
 def test_a_falling_pot_curve_and_another_boards_calibration_are_refused(data_path):
     here, there = both("case_calibrations_the_board_refuses(PATH)", data_path)
+    assert here == there
+
+
+def test_the_soft_limits_stay_off_the_calibrated_end_stops(data_path):
+    here, there = both("case_stroke_limits_from_end_stops(PATH)", data_path)
+    assert here == there
+    assert here["none"] == [500, 59500] and here["stops_none"] is None
+    assert here["low_shifted"] == [500, 57700]  # 300 um (stop_margin_um) inside the high stop
+    assert here["high_shifted"] == [1300, 59500]
+    assert here["param_inside"] == [2000, 59500]
+    assert here["margin_open"] == [2000, 59500]
+    assert here["all_open"] == [1000 - 65535, 65535] and here["forgotten"] is None  # no limit inside the stroke
+
+
+def test_a_calibration_for_another_adc_width_is_refused_before_its_codes_are_scanned(data_path, bcm3_data_path):
+    here, there = both("case_calibrations_for_another_adc_width(PATH, %r)" % bcm3_data_path, data_path)
+    assert here == there
+
+
+def test_a_calibration_whose_evaluation_fails_leaves_the_board_running_without_it(data_path):
+    """set_calibration (which the boot calls) turns any failure of the curves into the reason in
+    status, motor off: here a table cut short, which only a Calibration that skipped the loader's
+    checks can hold (CPython raises IndexError on it)."""
+    from testkit.replay import load, load_calibration, pwm_duties, replay_app
+
+    data = load(data_path)
+    app, _ = replay_app(data)
+    cal = load_calibration(data)
+    kind, k = cal.pot1
+    cal.pot1 = (kind, k[: 2 + k[0]])  # the knot values are missing
+    app.set_calibration(cal)
+    st = app.status()
+    assert st["calibration_crc"] is None and "unusable" in st["calibration_error"], st
+    assert pwm_duties(app) == [0, 0]
+    app.set_mode("open_loop")
+
+
+def test_temporary_parameters_come_back_when_the_host_goes_silent(data_path):
+    here, there = both("case_temporary_params_come_back_when_the_host_goes_silent(PATH)", data_path)
     assert here == there

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from firmware.bcm_fixed import bcm3, invalid
@@ -192,3 +192,55 @@ def test_bcm3_fits_of_real_adc_curves(realdata_dir):
     assert len(cases) == 4
     expected = [[bcm3(x, list(k)) for x in range(4096)] for k in cases]
     assert evaluate_on_micropython("bcm_fixed", "bcm3", cases, range(4096)) == expected
+
+
+@st.composite
+def layouts_near_the_limits(draw):
+    """(bcm3 words, inputs, which limit is crossed or None): words at the layout's limits (a
+    calibration file may come from anywhere, not only the exporter): spans, spreads, shifts,
+    mantissas and exponents at their ends, and in half the layouts one of them past its limit,
+    just or far; with the inputs where the evaluation turns: both ends of the curve, its
+    middle (a = b), the ends of the input range and random codes."""
+    past = draw(st.sampled_from([None] * 14 + list(range(14))))
+    field = iter(range(14))
+
+    def near(lo, hi, far_lo, far_hi):  # within [lo, hi], often at an end; past it for the chosen field
+        if next(field) == past:
+            beyond = [st.just(hi + 1), st.integers(hi + 1, far_hi)]
+            if far_lo < lo:
+                beyond += [st.just(lo - 1), st.integers(far_lo, lo - 1)]
+            return draw(st.one_of(*beyond))
+        return draw(st.one_of(st.just(lo), st.just(hi), st.integers(lo, hi)))
+
+    s = draw(st.integers(0, 28))
+    lx = draw(st.one_of(st.just(0), st.integers(0, 2**29 - 2**19)))
+    rx = draw(st.one_of(st.just(2**19), st.just(2**29 - lx), st.integers(2**19, 2**29 - lx)))
+    kb = rx.bit_length() - 20
+    h = near(0, 8, -2, 30)
+    spread = near(0, 2**21, 0, 2**28)
+    p0 = draw(st.one_of(st.just(-(2**29)), st.just(2**29 - 1 - spread), st.integers(-(2**29), 2**29 - 1 - spread)))
+    ends = [0, spread] + [draw(st.one_of(st.just(0), st.just(spread), st.integers(0, spread))) for _ in range(2)]
+    handles = [p0 + v for v in draw(st.permutations(ends))]  # the spread is the one drawn
+    ratios = []
+    for _ in range(6):
+        ratios += [near(2**18, 2**19, 0, 2**22), near(-64, 64, -200, 200)]
+    k = [s, lx, rx, kb, h] + handles + ratios
+    top = 1 << (29 - s)
+    turns = [lx >> s, (lx + rx) >> s, (lx + rx // 2) >> s]
+    codes = {0, 1, top - 1, top, top + 1} | {c + d for c in turns for d in (-2, -1, 0, 1, 2) if c + d >= 0}
+    codes |= set(draw(st.lists(st.integers(0, top), min_size=20, max_size=20)))
+    return k, sorted(codes), past
+
+
+@settings(max_examples=300, deadline=None)
+@given(layouts_near_the_limits())
+def test_the_board_accepts_exactly_the_layouts_that_stay_within_31_bits(layout):
+    """The board proves a bcm3 safe from its words alone (bcm_fixed.invalid, the layout limits):
+    words past any limit are refused, and on any words it accepts every intermediate of the real
+    evaluator, at the inputs where it turns, stays within 2**30."""
+    k, codes, past = layout
+    if past is not None:
+        assert invalid(k) is not None, ("accepted past a limit", past, k)
+        return
+    assert invalid(k) is None, (invalid(k), k)
+    assert track(bcm3, codes, k) <= 2**30, k

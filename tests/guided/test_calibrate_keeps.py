@@ -89,8 +89,9 @@ def _backups(path):
 def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at):
     before = old_file.read_bytes()
     _steps(monkeypatch, fail_at=fail_at)
+    quiet = Quiet()
     with pytest.raises(KeyboardInterrupt):
-        flow.run_steps(Session(), None, Quiet(), flow.STEPS, flow.Options(out=old_file))
+        flow.run_steps(Session(), None, quiet, flow.STEPS, flow.Options(out=old_file))
     if fail_at == "pots":  # nothing accepted: the file is untouched, no backup needed
         assert old_file.read_bytes() == before and _backups(old_file) == []
         return
@@ -98,8 +99,11 @@ def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at
     assert backup.read_bytes() == before  # every old section kept, under a dated name
     now = read_calibration(old_file)
     assert now["pot1"]["pot_id"] == "pot1-new"  # the accepted pots were written
-    # Df and force measured through the old curves went with them, unless re-measured here
+    # Df and force measured through the old curves went with them, unless re-measured here,
+    # and the person was told so
     assert ("df" in now) == (fail_at == "force") and "force" not in now
+    assert any("df, force, force_inverse, friction measured through the old pot curves" in line and "backup" in line
+               for line in quiet.said), quiet.said
 
 
 def test_a_single_step_keeps_the_previous_file_and_changes_only_its_sections(old_file, monkeypatch):
@@ -128,3 +132,23 @@ def test_a_corrupt_file_is_kept_aside_by_a_full_run_and_refused_by_a_step(tmp_pa
     (backup,) = _backups(path)
     assert backup.read_text() == corrupt
     assert set(read_calibration(path)) >= {"pot1", "pot2", "df", "force", "force_inverse", "friction"}
+
+
+@pytest.mark.parametrize("fail_at", ["assembly", "force"])
+def test_an_interrupted_run_keeps_what_it_measured_and_says_where_it_stopped(old_file, monkeypatch, fail_at):
+    """host calibrate's run log (host/guided/run_log.py): results.json and report.md beside the
+    calibration file, rewritten after every step, and on a stop the step and the reason."""
+    from host.guided.run_log import RunLog
+
+    _steps(monkeypatch, fail_at=fail_at, failure=RuntimeError("the board stopped answering"))
+    log = RunLog(old_file, "host calibrate --port sim")
+    with pytest.raises(RuntimeError):
+        flow.run_steps(Session(), None, Quiet(), flow.STEPS, flow.Options(out=old_file), log=log)
+    log.stop("the board stopped answering")
+    results = json.loads(log.json_path.read_text())
+    done = [s["step"] for s in results["steps"]]
+    assert done == (["pots"] if fail_at == "assembly" else ["pots", "assembly"])
+    assert all(s["accepted"] and s["lines"] == ["fitted"] for s in results["steps"])
+    assert results["stopped"] == {"phase": fail_at, "why": "the board stopped answering"}
+    report = log.report_path.read_text()
+    assert "Stopped during %s" % fail_at in report and "## pots: accepted (pot1, pot2 written)" in report

@@ -35,8 +35,12 @@ def test_every_step_is_accepted_written_and_verified(full_run):
     assert list(accepted) == ["bringup", "pots", "assembly", "force"]
     assert json.loads(out.with_name(out.stem + ".bringup.json").read_text())["ok"]
     doc = read_calibration(out)  # CRC and every section checked by the firmware's own parser
-    for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction"):
+    for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction", "stroke"):
         assert doc[name] and doc[name]["fixed"], name
+    # positions are measured from the block's end stops (their middle is 30 mm): pot 2 of
+    # boards/sim.json is mounted true, so the stops come out at 0 and 60 mm of D2
+    lo, hi = doc["stroke"]["end_stops_mm"]
+    assert abs(lo) < 0.15 and abs(hi - 60.0) < 0.15, (lo, hi)
     for pot in ("pot1", "pot2"):  # --model auto: the cheapest firmware curve near the noise floor
         assert doc[pot]["model"] in ("bcm", "pwl") and doc[pot]["fit"]["rms"] < 0.05, doc[pot]["fit"]
     assert doc["df"]["fit"]["order"] >= 4  # the paper's quartic, or higher by cross-validation
@@ -77,9 +81,10 @@ def test_closed_loop_error_is_smaller_after_calibration(full_run, tmp_path):
     with Session("sim", None, out, say=lambda s: None) as session:
         scale = reference_scale(session.board)
         rig = Rig(prompter, session.root)
-        after = displacement.run_targets(session, rig, scale, targets=(3, 30, 57))
+        zero = displacement.zero_at_stops(session, rig, scale)
+        after = displacement.run_targets(session, rig, scale, zero, targets=(3, 30, 57))
         session.flash(nominal)
-        before = displacement.run_targets(session, rig, scale, targets=(3, 30, 57))
+        before = displacement.run_targets(session, rig, scale, zero, targets=(3, 30, 57))
     assert all(r["settled"] for r in after)
     e_after, e_before = displacement.max_error(after), displacement.max_error(before)
     assert e_after < 0.5 and e_after < e_before / 3, (e_before, e_after)

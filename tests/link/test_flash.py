@@ -248,6 +248,13 @@ def _bad_calibrations(d, good):
     seg = dict(body, pot1={"kind": "pwl", "fixed": [2, 4, 0, 65536, 0, 60000]})  # one 60 mm segment: dx*dy > 2**30
     out["overflowing segment"] = encode_document(seg, check=False)
     out["another board"] = encode_document(dict(body, board="pico"))
+    # what only the boot's scan of every code finds: pot 2's table reversed, falling as the code rises
+    n = body["pot2"]["fixed"][0]
+    k = body["pot2"]["fixed"]
+    out["falling curve"] = encode_document(dict(body, pot2=dict(body["pot2"], fixed=k[:2 + n] + k[2 + n:][::-1])))
+    # both tables exported for a 10-bit ADC (input shift 6) onto the sim board's 12 bits
+    out["another ADC width"] = encode_document(dict(body, **{p: dict(body[p], fixed=[body[p]["fixed"][0], 6] + body[p]["fixed"][2:])
+                                                             for p in ("pot1", "pot2")}))
     paths = {}
     for name, content in out.items():
         p = d / (name.replace(" ", "_") + ".json")
@@ -268,6 +275,7 @@ def test_flash_refuses_bad_files_and_another_board_before_touching_the_board(cal
             code = cli.main(["flash", "--port", board.path, "--calibration", str(path)])
             err = capsys.readouterr().err.strip().splitlines()
             assert code == 2 and len(err) == 1 and err[0].startswith("error: "), (name, err)
+            assert "flashed" not in err[0], (name, err)  # refused before, not found out after
             assert (board.root / "calibration.json").read_bytes() == installed, name
         code = cli.main(["flash", "--port", board.path, "--board", "pico"])
         err = capsys.readouterr().err.strip().splitlines()
@@ -318,3 +326,14 @@ def test_flash_reads_back_every_file_it_installed(calibrations, monkeypatch, tmp
         flashing.flash(str(port), "sim", str(calibrations["a"][0]), progress=lambda s: None, ask_board=False)
     assert "verification failed" in str(info.value)
     assert any("crc32" in " ".join(" ".join(c) for c in cmds) for cmds in calls)
+
+
+def test_flash_onto_a_busy_port_says_it_is_busy(calibrations, capsys):
+    """Another program holding the port: one line naming that, not "no lsea-kit firmware"."""
+    import serial
+
+    with VirtualBoard(calibration=str(calibrations["a"][0])) as board:
+        with serial.Serial(board.path, exclusive=True):
+            code = cli.main(["flash", "--port", board.path])
+        err = capsys.readouterr().err.strip().splitlines()
+        assert code == 2 and len(err) == 1 and "busy" in err[0], err

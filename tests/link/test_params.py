@@ -47,13 +47,24 @@ def test_a_damaged_file_is_refused_whole_with_the_reason(tmp_path, damage, reaso
     assert got == {} and reason in why
 
 
+def _params_file(path, lines):
+    """A params file with a right CRC around `lines` (save itself refuses to write these)."""
+    import binascii
+
+    body = "\n".join([saved_params.HEADER] + lines) + "\n"
+    with open(path, "w") as f:
+        f.write(body + "crc %08x\n" % (binascii.crc32(body.encode()) & 0xFFFFFFFF))
+
+
 def test_a_value_outside_the_table_or_an_unknown_name_is_refused(tmp_path):
     table = [("a", 1, 0, 10, "x"), ("b", 2, 0, 10, "x")]
     path = str(tmp_path / "p.txt")
-    saved_params.save(path, table, [5, 11])
+    _params_file(path, ["a 5", "b 11"])
     assert "outside 0..10" in saved_params.load(path, table)[1]
-    saved_params.save(path, table + [("c", 0, 0, 1, "x")], [1, 2, 0])
+    _params_file(path, ["a 1", "b 2", "c 0"])
     assert "unknown parameter" in saved_params.load(path, table)[1]
+    with pytest.raises(ValueError, match="outside 0..10"):  # nor does save write such a file
+        saved_params.save(path, table, [5, 11])
 
 
 def test_no_file_means_defaults_and_no_complaint(tmp_path):
@@ -185,3 +196,39 @@ def test_a_damaged_saved_file_is_named_and_the_defaults_stand(calibration, capsy
         assert {p["name"]: p["value"] for p in table["params"]}["slew"] == dict((r[0], r[1]) for r in PARAMS)["slew"]
         assert cli.main(["params", "--port", port]) == 0
         assert "saved parameters not loaded at boot" in capsys.readouterr().out
+
+
+def test_a_save_whose_file_does_not_read_back_is_refused_and_keeps_the_old_one(tmp_path, monkeypatch):
+    """A flash that stores something else than was written (here every '9' becomes '8'): the
+    save says so, and the file in use keeps the values saved before."""
+    import builtins
+
+    path = str(tmp_path / "params.txt")
+    values = list(DEFAULTS)
+    values[0] = 900
+    saved_params.save(path, PARAMS, values)
+    before = open(path).read()
+
+    class Corrupting:
+        def __init__(self, f):
+            self.f = f
+
+        def write(self, text):
+            return self.f.write(text.replace("9", "8"))
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            self.f.close()
+
+    def corrupting_open(name, mode="r", *a, **k):
+        f = builtins.open(name, mode, *a, **k)
+        return Corrupting(f) if "w" in mode else f
+
+    monkeypatch.setattr(saved_params, "open", corrupting_open, raising=False)
+    values[0] = 990
+    with pytest.raises(ValueError, match="did not read back"):
+        saved_params.save(path, PARAMS, values)
+    assert open(path).read() == before and not os.path.exists(path + ".new")
+    assert saved_params.load(path, PARAMS)[0][0] == 900

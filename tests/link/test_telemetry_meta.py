@@ -3,8 +3,9 @@ calibration CRC, loop period, rate, date, each column's unit, the mode and fault
 
 import json
 
-from firmware.protocol import FIELDS, MODES
+from firmware.protocol import FIELDS, MODES, VERSION
 from firmware.safety import FAULT_NAMES
+import host
 from host import cli
 from host.link.telemetry_log import UNITS, load
 
@@ -23,8 +24,9 @@ def test_host_log_writes_the_metadata_beside_the_csv(tmp_path, capsys):
                      "--out", str(out)]) == 0
     assert "run.meta.json" in capsys.readouterr().out
     meta = json.loads((tmp_path / "run.meta.json").read_text())
-    assert meta["board"] == "sim" and meta["stream_hz"] == 200 and meta["loop_period_us"] == 1000
+    assert meta["board"] == "sim" and meta["stream_hz"] == 200 and meta["loop_period_us"] == 1000 and meta["loop_hz"] == 1000
     assert meta["calibration_crc"] == "%08x" % json.loads(cal.read_text())["crc32"]
+    assert meta["firmware"] == VERSION and meta["host"] == host.__version__
     assert list(meta["columns"]) == list(FIELDS) and meta["date"].endswith("+00:00")
     assert meta["modes"] == {str(i): n for i, n in enumerate(MODES)}
     assert meta["faults"] == {str(b): n for b, n in FAULT_NAMES}

@@ -150,14 +150,14 @@ def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
     return est // hold_ticks, int(true / hold_ticks)
 
 
-def _hooked_on_side(path, side, anchor, gap_um):
+def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
     """A started app with the file's calibration, the block moved `gap_um` to the slack side of
     the anchor, the gauge hooked on `side`: (app, world, sign of the forces against it)."""
     from firmware.app import App
 
     import boards.sim.machine as sim
 
-    app = App("boards/sim.json", None, machine=for_board("boards/sim.json"))
+    app = App(board_path, None, machine=for_board(board_path))
     app.set_calibration(load_calibration(path))
     app.start()
     world = sim.world()
@@ -169,10 +169,10 @@ def _hooked_on_side(path, side, anchor, gap_um):
     return app, world, sign
 
 
-def case_force_points_sim(path, side, levels, anchor=45000):
+def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/sim.json"):
     """Force identification as the guided step does it, on the simulated actuator: open-loop duty
     steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
-    app, world, sign = _hooked_on_side(path, side, anchor, 1500)
+    app, world, sign = _hooked_on_side(path, side, anchor, 1500, board_path)
     app.set_mode("open_loop")
     rows = []
     seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
@@ -196,10 +196,11 @@ def case_force_points_sim(path, side, levels, anchor=45000):
     return rows
 
 
-def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500):
+def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500,
+                         board_path="boards/sim.json"):
     """Force steps against a gauge on `side`, the fibre just slack, then taken up by a `preload` mN
     hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each."""
-    app, world, sign = _hooked_on_side(path, side, anchor, 200)
+    app, world, sign = _hooked_on_side(path, side, anchor, 200, board_path)
     app.set_mode("force")
     if preload:
         app.set_target(sign * preload)
@@ -253,8 +254,7 @@ def case_stroke_limits_sim(path, duty=10000, ticks=1500):
     app.set_calibration(load_calibration(path))
     app.start()
     world = sim.world()
-    lo = app.get_param("stroke_min_um")
-    hi = app.get_param("stroke_max_um")
+    lo, hi = app.ctrl.stroke_limits
     zone = app.get_param("slow_zone_um")
     sim.run_ticks(10)
     out = {}
@@ -272,7 +272,7 @@ def case_stroke_limits_sim(path, duty=10000, ticks=1500):
             nut = world.nut_mm if sign > 0 else -world.nut_mm
             if max(pos, nut) > extreme:
                 extreme = max(pos, nut)
-            room = hi - max(m.d1, m.d2) if sign > 0 else min(m.d1, m.d2) - lo
+            room = hi - m.d2 if sign > 0 else m.d2 - lo
             if room > zone and abs(app.ctrl.duty) > far_duty:
                 far_duty = abs(app.ctrl.duty)
             if room < zone // 4:
@@ -343,3 +343,52 @@ def case_run_realtime_sim():
     assert sim.motor_voltage() == 0 and st["mode"] == "idle", st
     assert app.ctrl.steps >= 100, app.ctrl.steps  # 300 ms at 1 kHz, allowing for a slow host
     return {"ok": True}
+
+
+def case_position_sticky_sim(path, board_path, targets, settle_ticks=2500, hold_ticks=1000):
+    """Position mode on a sticky actuator (the board file's block friction): for each target,
+    after `settle_ticks`, the block's true position (pot 2's wiper travel, what pot 2 was
+    calibrated against) over `hold_ticks`: its error and how far it moved (a limit cycle moves
+    it), and the first tick from which it stayed within 50 um of the target (settle time)."""
+    from firmware.app import App
+
+    import boards.sim.machine as sim
+
+    app = App(board_path, None, machine=for_board(board_path))
+    app.set_calibration(load_calibration(path))
+    app.start()
+    world = sim.world()
+    pot2 = world.pots[1]
+    sim.run_ticks(10)
+    app.set_mode("position")
+    out = {"true_err_um": 0, "moved_um": 0, "settle_ticks": 0}
+    for target in targets:
+        app.set_target(target)
+        lo = hi = None
+        inside_since = None
+        k = 0
+        while k < settle_ticks + hold_ticks:
+            sim.run_ticks(1)
+            app.heartbeat()
+            x = world.block_mm
+            travel = int((x + pot2.mount_error_mm(x)) * 1000.0)
+            if abs(travel - target) <= 50:
+                inside_since = k if inside_since is None else inside_since
+            else:
+                inside_since = None
+            if k >= settle_ticks:
+                lo = travel if lo is None or travel < lo else lo
+                hi = travel if hi is None or travel > hi else hi
+                e = abs(travel - target)
+                if e > out["true_err_um"]:
+                    out["true_err_um"] = e
+            k += 1
+        if hi - lo > out["moved_um"]:
+            out["moved_um"] = hi - lo
+        settled = settle_ticks + hold_ticks if inside_since is None else inside_since
+        if settled > out["settle_ticks"]:
+            out["settle_ticks"] = settled
+    st = app.status()
+    app.shutdown()
+    assert st["faults"] == [] and st["mode"] == "position", st
+    return out

@@ -1,0 +1,256 @@
+"""Watch a run live: the telemetry plot (host/link/telemetry_plot.py) redrawn ten times a second of
+the board's time while the board streams at 1 kHz and the CSV is written.
+
+Two processes, so drawing never holds up the serial port: this one does all of the board's I/O
+(the motion or the plain recording, through a host.link.telemetry_log.Recording that writes every
+frame to the CSV and puts its records on a queue), and a drawing process of its own (a GUI
+toolkit wants its own main thread, and a redraw holds the interpreter lock long enough to starve
+the port's reader, and a virtual board's relay, of a thread beside it) takes them off the queue
+and redraws. Frames are counted by sequence number as they are decoded, so a slow redraw shows
+as a late picture, never as lost data. Redraws are scheduled in the board's time (the records'
+t_us): one each 1/refresh_hz board seconds; when a redraw took longer than that, the ones it
+covered are counted as skipped rather than drawn late.
+
+A machine without a display (no DISPLAY, or matplotlib's backend is not interactive) gets no
+window; the commands write a PNG of the whole run at the end instead.
+"""
+
+import os
+import queue
+import sys
+
+import numpy as np
+
+from firmware import protocol as P
+from host.link.board_time import BoardTime
+from host.link.telemetry_plot import TelemetryFigure
+
+REFRESH_HZ = 10
+WINDOW_S = 10.0  # the newest seconds of board time shown
+MAX_POINTS = 2000  # per line; the CSV keeps every record, the picture needs no more
+DRAWER_END_S = 30.0  # after the run, how long the drawing process may take to finish
+IO_SWITCH_S = 0.0005  # the interpreter's thread switch interval while drawing beside the board's I/O
+
+
+def open_window(title):
+    """A matplotlib Figure in a window of the interactive backend, or None where there is no
+    display. The one place the host lets pyplot choose a backend: a window was asked for."""
+    if sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY")):
+        return None
+    import matplotlib.pyplot as plt
+
+    fig = plt.figure(figsize=(10, 9))
+    if fig.canvas.required_interactive_framework is None:  # Agg and the other file-only backends
+        plt.close(fig)
+        return None
+    fig.canvas.manager.set_window_title(title)
+    plt.show(block=False)
+    return fig
+
+
+class LiveView:
+    """The newest `window_s` of records on a TelemetryFigure on `figure`, redrawn every
+    1/refresh_hz seconds of board time. `redraws` and `skipped` count what the schedule asked
+    for; `full_redraws` how many of the redraws drew the axes too.
+
+    Ticks and labels cost most of a redraw, so the axes are drawn only when their limits change
+    (time moves on in steps of a fifth of the window; a panel's range grows when the data leave
+    it and shrinks when they use less than a quarter of it); in between only the lines are drawn
+    over the saved background (blitting)."""
+
+    def __init__(self, figure, raw=False, title=None, window_s=WINDOW_S, refresh_hz=REFRESH_HZ, max_points=MAX_POINTS):
+        self.figure = figure
+        self.plot = TelemetryFigure(figure, raw, title, animated=True)
+        self.window_s = window_s
+        self.period = 1.0 / refresh_hz
+        self.max_points = max_points
+        self.clock = BoardTime()
+        self.redraws = 0
+        self.full_redraws = 0
+        self.skipped = 0
+        self.closed = False
+        self._next = self.period
+        self._chunks = []  # (board seconds, records) as they came, trimmed to the window
+        self._background = None
+        self._xlim = None
+        figure.canvas.mpl_connect("close_event", self._on_close)
+        figure.canvas.mpl_connect("resize_event", self._on_resize)
+        figure.tight_layout()
+
+    def _on_close(self, event):
+        self.closed = True
+
+    def _on_resize(self, event):
+        self._background = None
+
+    def add(self, rows):
+        """Records as they arrive, in order (int array, columns P.FIELDS)."""
+        if len(rows):
+            self._chunks.append((self.clock.stamps(rows), rows))
+
+    def due(self):
+        return self.clock.seconds >= self._next
+
+    def _window(self):
+        now = self.clock.seconds
+        start = now - self.window_s
+        while len(self._chunks) > 1 and self._chunks[1][0][0] <= start:
+            del self._chunks[0]
+        t = np.concatenate([c[0] for c in self._chunks])
+        rows = np.concatenate([c[1] for c in self._chunks])
+        keep = t >= start
+        step = max(1, int(keep.sum()) // self.max_points)
+        return t[keep][::step], rows[keep][::step]
+
+    def _limits_changed(self):
+        """Set the axes' limits for the data now on the lines; True when any changed."""
+        changed = False
+        step = self.window_s / 5
+        x0 = max(0.0, np.ceil((self.clock.seconds - self.window_s) / step) * step)
+        if self._xlim != x0:
+            self._xlim = x0
+            self.plot.axes[-1].set_xlim(x0, x0 + self.window_s + step)
+            changed = True
+        for ax in self.plot.axes:
+            values = [line.get_ydata() for line, _ in self.plot.lines if line.axes is ax]
+            values = np.concatenate([np.asarray(v, dtype=float) for v in values])
+            values = values[np.isfinite(values)]
+            if not len(values):
+                continue
+            lo, hi = float(values.min()), float(values.max())
+            margin = max((hi - lo) * 0.5, 1e-3 * max(1.0, abs(hi)))  # room for noise: fewer full redraws
+            a, b = ax.get_ylim()
+            if lo < a or hi > b or b - a > 4 * (hi - lo + 2 * margin):
+                ax.set_ylim(lo - margin, hi + margin)
+                changed = True
+        return changed
+
+    def redraw(self):
+        """Draw the window; counts the scheduled redraws this one stands for beyond itself as skipped."""
+        behind = int((self.clock.seconds - self._next) // self.period)
+        self.skipped += max(0, behind)
+        self._next += (max(0, behind) + 1) * self.period
+        self.redraws += 1
+        canvas = self.figure.canvas
+        if self._chunks:
+            t, rows = self._window()
+            self.plot.show(t, {name: rows[:, i] for i, name in enumerate(P.FIELDS)}, autoscale=False)
+            if self._limits_changed():
+                self._background = None
+        if self._background is None:
+            canvas.draw()  # everything but the lines
+            self._background = canvas.copy_from_bbox(self.figure.bbox)
+            self.full_redraws += 1
+        else:
+            canvas.restore_region(self._background)
+        for line, _ in self.plot.lines:
+            line.axes.draw_artist(line)
+        canvas.blit(self.figure.bbox)
+        canvas.flush_events()
+
+    def idle(self):
+        """Let the window handle its events (resizing, closing) between redraws."""
+        self.figure.canvas.flush_events()
+
+
+def _draw(rows_queue, report, stop, raw, title, canvas, close_stops):
+    """The drawing process: records off `rows_queue` (None ends it) onto a LiveView, redrawn when
+    due; puts ("headless",) or ("done", counts) on `report`. canvas: "window" or "agg"."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the board process's to handle
+    if canvas == "agg":
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
+
+        figure = Figure(figsize=(10, 9))
+        FigureCanvasAgg(figure)
+    else:
+        figure = open_window(title)
+        if figure is None:
+            report.put(("headless",))
+            return
+    view = LiveView(figure, raw, title)
+    report.put(("ready",))
+    ended = False
+    while not ended:
+        try:
+            rows = rows_queue.get(timeout=0.02)
+            while rows is not None:
+                if not view.closed:
+                    view.add(rows)
+                rows = rows_queue.get_nowait()
+            ended = True
+        except queue.Empty:
+            pass
+        if view.closed:
+            if close_stops:
+                stop.set()
+        elif view.due():
+            view.redraw()
+        else:
+            view.idle()
+    newest = {line.get_label(): float(line.get_ydata()[-1]) for line, _ in view.plot.lines if len(line.get_ydata())}
+    report.put(("done", {"redraws": view.redraws, "skipped": view.skipped, "full_redraws": view.full_redraws,
+                         "board_seconds": view.clock.seconds, "newest": newest}))
+
+
+def logged(board, path, rate, work, canvas=None, raw=False, close_stops=False):
+    """Run `work(recording)` with the board's telemetry at `rate` Hz logged to CSV `path` over the
+    same connection (host.api.Board.log), drawn live when `canvas` is "window" (or "agg": the
+    same drawing on the file-only canvas) in a process of its own, so that drawing never holds
+    up this process's reading of the port. `raw`: a board without calibration (TelemetryFigure).
+    Returns (what work returned, the LogSummary, the view's report: None without a canvas,
+    {"headless": True} when no window could open, else its counts)."""
+    if canvas is None:
+        with board.log(path, rate) as recording:
+            return work(recording), recording.summary, None
+    import multiprocessing
+
+    context = multiprocessing.get_context("spawn")  # a fresh interpreter: its own GUI, no forked threads
+    rows_queue, report, stop = context.Queue(), context.Queue(), context.Event()
+    drawer = context.Process(target=_draw, args=(rows_queue, report, stop, raw, "lsea-kit: %s" % path, canvas,
+                                                 close_stops), daemon=True)
+    drawer.start()
+    try:  # the window is up (or known not to open) before the run starts
+        ready = report.get(timeout=DRAWER_END_S)
+    except queue.Empty:
+        ready = ("ready",)
+    if ready[0] == "headless":
+        drawer.join(DRAWER_END_S)
+        with board.log(path, rate) as recording:
+            return work(recording), recording.summary, {"headless": True}
+    try:
+        with board.log(path, rate, on_rows=rows_queue.put, stop=stop) as recording:
+            result = work(recording)
+    finally:
+        rows_queue.put(None)
+    try:
+        outcome = report.get(timeout=DRAWER_END_S)
+    except queue.Empty:
+        outcome = None
+    drawer.join(DRAWER_END_S)
+    if drawer.is_alive():
+        drawer.terminate()
+    return result, recording.summary, None if outcome is None else outcome[1]
+
+
+def watched(board, path, rate, live, work, close_stops=False):
+    """`work(link)` with the telemetry logged to CSV `path` (logged()); `live`: drawn in a window,
+    or, where there is no display, a PNG of the whole run written beside the CSV at the end.
+    Returns (what work returned, the LogSummary, the PNG's path or None)."""
+    from pathlib import Path
+
+    from host.link.telemetry_plot import plot
+    from host.terminal import note
+
+    display = live and not (sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or
+                                                                      os.environ.get("WAYLAND_DISPLAY")))
+    raw = (board.client.status_info or {}).get("calibration_crc") is None
+    result, summary, view = logged(board, path, rate, work, "window" if display else None, raw, close_stops)
+    png = None
+    if live and (not display or (view or {}).get("headless")):
+        note("no display: a PNG of the run is written at the end instead of a live window")
+        if summary.samples:
+            png = plot(path, Path(path).with_suffix(".png"))
+    return result, summary, png

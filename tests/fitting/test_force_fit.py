@@ -1,0 +1,80 @@
+"""The force model F_gauge = F0(d) + h s on the springs of the simulated actuators: a polynomial
+where it fits (boards/sim.json: the preload holds over the whole force range), a free-knot table
+where a preloaded spring lifts off inside the range and the stiffness halves at one point, with
+the firmware's own table evaluator agreeing with the host's and the inverse exact."""
+
+import json
+
+import numpy as np
+import pytest
+
+from boards.sim.actuator import Actuator
+from firmware.calibration import CalibrationError, poly_constants
+from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
+from host.calibration.file import force_table_section
+from host.fitting.force import fit_force
+from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+
+
+def _points(springs, friction_n=0.4, noise_n=0.03, top_n=16.0, seed=2):
+    """Loading/unloading points against a gauge on both sides, as the force step takes them:
+    d where the spring holds each force level, the gauge reading the spring minus the friction
+    in the direction the block slid, with the gauge's noise."""
+    board = json.loads(open("boards/sim.json").read())
+    board["actuator"]["springs"].update(springs)
+    world = Actuator(dict(board["actuator"], adc_bits=12), 1)
+    grid = np.linspace(-2.0, 2.0, 4001)
+    spring = np.array([world.spring_force(v) for v in grid])
+    rng = np.random.default_rng(seed)
+    d, f, s = [], [], []
+    for sign in (-1, 1):
+        levels = np.linspace(top_n / 8, top_n, 8)
+        for rounds in range(2):
+            for load, seq in ((True, levels), (False, levels[::-1][1:])):
+                for level in seq:
+                    # s as the force step assigns it (host.guided.force_calibration.force_points):
+                    # F_gauge = F0(d) + h s, so the spring holds F_gauge - h s at rest
+                    direction = (1.0 if load else -1.0) * -sign
+                    target = sign * level - friction_n * direction
+                    d.append(float(np.interp(target, spring, grid)))
+                    f.append(sign * level + rng.normal(0, noise_n))
+                    s.append(direction)
+    return np.array(d), np.array(f), np.array(s), world
+
+
+def test_the_simulated_actuators_spring_keeps_its_polynomial():
+    d, f, s, _ = _points({})  # sim.json: preload 21.7 N, beyond the 16 N range
+    fit = fit_force(d, f, s)
+    assert fit.kind == "poly" and fit.rms_n < 0.06 and abs(fit.friction_n - 0.4) < 0.05, (fit.kind, fit.rms_n, fit.friction_n)
+
+
+def test_a_spring_that_lifts_off_inside_the_range_gets_a_table():
+    springs = {"k1_n_per_mm": 17.0, "k2_n_per_mm2": 0.28, "preload_n": 7.0}  # lifts off at 14.2 N
+    d, f, s, world = _points(springs, top_n=19.0)  # where a strong motor's first loading ends
+    poly_only = fit_force(d, f, s, tables=False)
+    fit = fit_force(d, f, s)
+    assert poly_only.rms_n > 3 * fit.rms_n  # no polynomial of order <= 5 follows the kink
+    assert fit.kind == "pwl" and fit.rms_n < 0.06 and abs(fit.friction_n - 0.4) < 0.05, (fit.rms_n, fit.friction_n)
+    # the table follows the true spring within 0.1 N over the calibrated range
+    grid = np.linspace(d.min(), d.max(), 200)
+    truth = np.array([world.spring_force(v) for v in grid])
+    assert np.max(np.abs(fit.f0(grid) - truth)) < 0.1
+    # exported: the firmware's table evaluator gives the host's values, and the inverse undoes it
+    fwd = force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
+    inv = force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
+    kf, ki = poly_constants(fwd, "force"), poly_constants(inv, "force_inverse")
+    for d_um in range(-1500, 1501, 37):
+        f_mn = pwl(d_um + FORCE_PWL_OFFSET, kf)
+        assert abs(f_mn - 1000 * fit.f0(d_um / 1000)) <= 12  # mN: knots rounded to 1 um at up to 20 mN/um
+        assert abs(pwl(f_mn + FORCE_PWL_OFFSET, ki) - d_um) <= 2
+
+
+@pytest.mark.parametrize("bad", [
+    {"kind": "pwl", "fixed": [2, 3, 30000, 36000, -20000, 20000]},  # an input shift: not a force table
+    {"kind": "pwl", "fixed": [2, 0, 36000, 30000, -20000, 20000]},  # inputs falling
+])
+def test_a_bad_force_table_is_refused(bad):
+    with pytest.raises(CalibrationError):
+        poly_constants(bad, "force")
+    with pytest.raises(CalibrationError):  # and a table is never a Df
+        poly_constants({"kind": "pwl", "fixed": [2, 0, 30000, 36000, -20000, 20000]}, "df")

@@ -1,0 +1,98 @@
+"""The link on a busy computer: slow is not silent.
+
+A 2-core machine kept busy on purpose (CPU-bound processes beside the virtual board and the
+client): flashing, commands, a closed-loop move and a 200 Hz stream still work and lose no
+frame. A board frozen for a while (SIGSTOP on the virtual board's interpreter: what a starved
+process looks like from the host) answers once it runs again, within the client's patience; a
+board frozen for good is reported as "the board stopped answering", not as a traceback.
+"""
+
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+from host.link.board_client import BoardClient
+from host.link.connect import open_board
+from host.link.flashing import flash
+from host.link.virtual_board import VirtualBoard
+
+from testkit.model import write_model_calibration
+
+BURNERS = 3  # with the board, the client and the suite's other worker: a load of 5-6 on 2 cores
+
+
+@pytest.fixture(scope="module")
+def calibration_file(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cal") / "cal.json"
+    write_model_calibration(path, date="2026-11-24")
+    return str(path)
+
+
+@pytest.fixture
+def busy_machine():
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(BURNERS)]
+    try:
+        yield
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()
+
+
+def test_flash_commands_moves_and_streams_survive_a_busy_machine(busy_machine, calibration_file):
+    with VirtualBoard() as vb:
+        status = flash(vb.path, "sim", calibration_file, progress=lambda s: None)
+        assert status["calibration_crc"] is not None
+    with open_board("sim", calibration=calibration_file) as board:
+        for _ in range(20):
+            assert board.call("status")["faults"] == []
+        from host.guided.acquire import settle
+
+        ok, value, _ = settle(board, "position", 20000, "d2_um", 200, timeout_s=10.0)
+        board.call("stop")
+        assert ok, value
+        lost = board.decoder.lost_frames
+        board.start_stream(200)
+        records = 0
+        t0 = time.monotonic()
+        while time.monotonic() - t0 < 3.0:
+            board.heartbeat_if_due()
+            records += sum(len(f.records()) for f in board.frames(timeout=0.05))
+        board.stop_stream()
+        assert records > 200 and board.decoder.lost_frames == lost, (records, board.decoder.lost_frames - lost)
+
+
+def _interpreter(vb):
+    return vb._child.pid
+
+
+def test_a_frozen_board_that_comes_back_is_slow_not_gone(calibration_file):
+    with VirtualBoard(calibration=calibration_file) as vb:
+        client = BoardClient(vb.path)
+        try:
+            pid = _interpreter(vb)
+            os.kill(pid, signal.SIGSTOP)
+            threading.Timer(3.0, os.kill, (pid, signal.SIGCONT)).start()
+            t0 = time.monotonic()
+            status = client.request("status")  # resent until the board runs again
+            assert status["faults"] == [] and time.monotonic() - t0 >= 2.5
+        finally:
+            client.close()
+
+
+def test_a_board_frozen_for_good_is_said_to_have_stopped_answering(calibration_file):
+    with VirtualBoard(calibration=calibration_file) as vb:
+        client = BoardClient(vb.path, patience=2.0)
+        pid = _interpreter(vb)
+        try:
+            os.kill(pid, signal.SIGSTOP)
+            with pytest.raises(TimeoutError, match="the board stopped answering: no reply to status .* nothing else came"):
+                client.request("status")
+        finally:
+            os.kill(pid, signal.SIGCONT)
+            client.close()

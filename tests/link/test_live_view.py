@@ -1,0 +1,111 @@
+"""Watching a run live (host/link/live_view.py): the telemetry plot redrawn ten times a second of the
+board's time while it streams at 1 kHz, with no frame lost (counted by sequence number) and the
+CSV written meanwhile; `host move/force --log FILE [--live]` over one connection; a machine
+without a display gets the CSV and a PNG. The virtual board, headless; the drawing path runs on
+matplotlib's Agg canvas at its refresh rate."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from firmware.protocol import MODES
+from host import cli
+from host.api import Board
+from host.link.live_view import REFRESH_HZ, logged, open_window
+from host.link.telemetry_log import load
+
+from testkit.model import write_model_calibration
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cal") / "cal.json"
+    write_model_calibration(path, date="2026-03-03")
+    return str(path)
+
+
+@pytest.fixture
+def headless(monkeypatch):
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+
+
+def test_the_live_view_redraws_ten_times_a_board_second_and_no_frame_is_lost(calibration, tmp_path):
+    out = tmp_path / "live.csv"
+    with Board("sim", calibration=calibration) as board:  # "agg": the drawing a window runs, on the file-only canvas
+        def work(recording):  # a move, then two seconds of the block held there
+            moved = board.move(40.0, hold=True)
+            recording.pump(2.0)
+            return moved
+
+        result, summary, view = logged(board, out, 1000, work, canvas="agg")
+    assert result.reached
+    # every frame arrived (sequence numbers) and every 1 ms step is in the CSV
+    assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
+    data = load(out)
+    assert set(np.diff(data["t_us"])) == {1000} and len(data["t_us"]) == summary.samples
+    # the view saw every record, and its schedule is 10 redraws a second of board time: each
+    # scheduled one was drawn, or covered by a later one that came when a draw ran long
+    assert view["board_seconds"] == pytest.approx((data["t_us"][-1] - data["t_us"][0]) / 1e6, abs=0.02)
+    scheduled = math.floor(view["board_seconds"] * REFRESH_HZ)
+    assert scheduled - 1 <= view["redraws"] + view["skipped"] <= scheduled
+    # how many of them were drawn rather than skipped depends on the machine's load (measured
+    # figures in docs/link.md), so only that drawing went on to the end is asserted
+    assert view["redraws"] >= 2, view
+    assert view["full_redraws"] < view["redraws"]  # between axis changes only the lines are drawn
+    # what the last redraw showed is the newest data: D2 near the 40 mm target
+    assert abs(view["newest"]["D2 block"] - 40.0) < 0.3, view["newest"]
+
+
+def test_no_window_without_a_display(headless):
+    assert open_window("x") is None
+
+
+def test_move_with_log_and_live_headless_writes_csv_meta_and_png_over_one_connection(calibration, tmp_path, capsys,
+                                                                                       headless):
+    out = tmp_path / "move.csv"
+    assert cli.main(["move", "--port", "sim", "--calibration", calibration, "--to", "40", "--log", str(out),
+                     "--live"]) == 0
+    printed = capsys.readouterr()
+    assert printed.out.startswith(("reached at 39.", "reached at 40."))
+    assert "%s: " % out in printed.out and "lost frames 0" in printed.out and "plot: %s" % out.with_suffix(".png") in printed.out
+    assert "no display: a PNG of the run is written at the end" in printed.err
+    data = load(out)
+    position = data["mode"] == MODES.index("position")
+    # position mode starts holding where the block is; the move's target follows a command later
+    assert position.any() and data["target"][position][-1] == 40000
+    assert abs(data["d2_um"][position][-1] - 40000) < 300
+    assert set(np.diff(data["t_us"])) == {1000}
+    assert json.loads((tmp_path / "move.meta.json").read_text())["stream_hz"] == 1000
+    assert out.with_suffix(".png").stat().st_size > 20000
+
+
+def test_force_with_log_and_json(calibration, tmp_path, capsys):
+    out = tmp_path / "force.csv"
+    assert cli.main(["force", "--port", "sim", "--calibration", calibration, "--load", "gauge@40", "--target", "-3",
+                     "--log", str(out), "--rate", "500", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["reached"] and abs(result["value"] + 3) <= 0.1 and result["target"] == -3
+    assert result["log"]["lost_frames"] == 0 and result["log"]["samples"] == len(load(out)["t_us"])
+    assert set(np.diff(load(out)["t_us"])) == {2000}
+
+
+def test_log_live_headless_writes_the_png(tmp_path, capsys, headless):
+    out = tmp_path / "run.csv"
+    assert cli.main(["log", "--port", "sim", "--out", str(out), "--seconds", "0.5", "--live"]) == 0
+    printed = capsys.readouterr()
+    assert "plot: %s" % out.with_suffix(".png") in printed.out
+    assert out.with_suffix(".png").stat().st_size > 20000
+
+
+def test_live_without_log_is_a_one_line_error(capsys):
+    assert cli.main(["move", "--port", "sim", "--to", "30", "--live"]) == 2
+    assert capsys.readouterr().err == "error: --live needs --log FILE.csv (the run is recorded while it is shown)\n"
+
+
+def test_move_json(calibration, capsys):
+    assert cli.main(["move", "--port", "sim", "--calibration", calibration, "--to", "35", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["reached"] and abs(result["value"] - 35) <= 0.2 and result["faults"] == []

@@ -1,0 +1,139 @@
+"""The virtual board's serial port behaves like a board's REPL for the tools people use with
+boards: text lines end in \\r\\n, Ctrl-C interrupts, Ctrl-D soft-resets into main.py, the raw REPL
+and its raw-paste mode work (Thonny and mpremote send code that way), and rshell and mpremote's
+REPL drive it. The real unix port, firmware, pty, pyserial, mpremote and rshell."""
+
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+import serial
+
+from firmware.protocol import VERSION
+from host.link.board_client import BoardClient
+from host.link.virtual_board import VirtualBoard
+
+BIN = Path(sys.executable).parent
+DEADLINE_S = 30  # only spent when a test fails
+
+
+@pytest.fixture(scope="module")
+def vboard():
+    with VirtualBoard() as board:
+        yield board
+
+
+def read_until(port, marker, what="output"):
+    """Bytes from `port` (pyserial or a pty fd) up to and including `marker`."""
+    data = b""
+    deadline = time.monotonic() + DEADLINE_S
+    while not data.endswith(marker):
+        assert time.monotonic() < deadline, "no %r in %s: %r" % (marker, what, data[-300:])
+        if isinstance(port, int):
+            try:
+                data += os.read(port, 1)
+            except BlockingIOError:
+                time.sleep(0.01)
+        else:
+            data += port.read(1)
+    return data
+
+
+def to_friendly_repl(ser):
+    ser.write(b"\r\x03\x03\r\x02")  # stop whatever runs; leave a raw REPL for the friendly one
+    read_until(ser, b'Type "help()" for more information.\r\n>>> ')
+    time.sleep(0.2)
+    ser.reset_input_buffer()
+
+
+def test_the_friendly_repl_ends_lines_with_crlf_and_ctrl_c_interrupts(vboard):
+    with serial.Serial(vboard.path, 115200, timeout=0.1) as ser:
+        to_friendly_repl(ser)
+        ser.write(b"print('one\\ntwo')\r")
+        assert read_until(ser, b">>> ").endswith(b"\r\none\r\ntwo\r\n>>> ")
+        ser.write(b"while True: pass\r\r")
+        time.sleep(0.3)
+        ser.write(b"\x03")
+        out = read_until(ser, b">>> ")
+        assert b"KeyboardInterrupt: \r\n" in out and b"\n" not in out.replace(b"\r\n", b"")
+
+
+def test_ctrl_d_at_the_repl_soft_resets_into_the_firmware(vboard):
+    with serial.Serial(vboard.path, 115200, timeout=0.1) as ser:
+        to_friendly_repl(ser)
+        ser.write(b"\x04")
+        read_until(ser, b"MPY: soft reboot\r\n")
+    with BoardClient(vboard.path, start_firmware=False) as board:  # main.py runs without our help
+        assert board.status_info["version"] == VERSION
+
+
+def test_ctrl_z_and_ctrl_backslash_are_plain_bytes_as_on_a_board(vboard):
+    """On the unix port's terminal they would stop or quit micropython; on a board they are
+    bytes like any other, which the firmware refuses as a bad line."""
+    with BoardClient(vboard.path) as board:
+        boots = vboard.boots
+        board.serial.write(b"\x1a\x1c\n")
+        time.sleep(0.3)
+        assert board.call("status")["version"] == VERSION
+        assert vboard.boots == boots and board.hellos == 0
+
+
+def test_raw_paste_mode_runs_a_long_program_thonny_style(vboard):
+    """mpremote's transport speaks the raw REPL the way Thonny does: raw-paste mode, with the
+    board's flow control, and falls back to plain raw mode if the board refuses it."""
+    from mpremote.transport_serial import SerialTransport
+
+    program = "\n".join("x%d = %d" % (i, i) for i in range(300)) + "\nprint(x299 + x1)\nprint('a\\nb')\n"
+    assert len(program) > 2000  # many windows of the board's flow control
+    transport = SerialTransport(vboard.path, baudrate=115200)
+    try:
+        transport.enter_raw_repl(soft_reset=False)
+        out = transport.exec(program)
+        assert transport.use_raw_paste  # the board accepted raw-paste (else mpremote falls back)
+        assert out == b"300\r\na\r\nb\r\n"
+        transport.exit_raw_repl()
+    finally:
+        transport.close()
+
+
+def test_mpremote_repl_shows_lines_without_staircase(vboard):
+    """`mpremote repl` on a terminal: the board's output reaches the screen as sent (mpremote sets
+    the terminal raw), so each line must end in \\r\\n or the next starts where it ended."""
+    master, slave = os.openpty()
+    proc = subprocess.Popen([str(BIN / "mpremote"), "connect", vboard.path, "repl"], stdin=slave, stdout=slave,
+                            stderr=slave, start_new_session=True)
+    os.close(slave)
+    os.set_blocking(master, False)
+    try:
+        read_until(master, b"Use Ctrl-] or Ctrl-x to exit this shell\r\n", "mpremote's banner")
+        os.write(master, b"\x03")
+        read_until(master, b">>> ", "the prompt after Ctrl-C")
+        os.write(master, b"for i in range(3): print('line', i)\r\r")
+        out = read_until(master, b"line 2\r\n>>> ", "the loop's output")
+        assert b"line 0\r\nline 1\r\nline 2\r\n>>> " in out
+        os.write(master, b"\x1d")  # Ctrl-]: leave mpremote
+        proc.wait(timeout=DEADLINE_S)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        os.close(master)
+
+
+def rshell(port, *command):
+    proc = subprocess.run([str(BIN / "rshell"), "-p", port, "--quiet", *command], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr + proc.stdout, proc.stdout + proc.stderr
+    return proc.stdout
+
+
+def test_rshell_lists_and_reads_the_board_files_and_the_firmware_comes_back(vboard):
+    listing = rshell(vboard.path, "ls", "/pyboard")  # interrupts the firmware (Ctrl-C), as on a board
+    assert {"board.json", "main.py", "firmware/"} <= set(listing.split())
+    board_json = rshell(vboard.path, "cat", "/pyboard/board.json")
+    assert board_json.strip() == (vboard.root / "board.json").read_text().strip()
+    with BoardClient(vboard.path) as board:  # at the REPL: soft reset, main.py starts the firmware
+        assert board.status_info["version"] == VERSION
