@@ -35,6 +35,7 @@ class Cal:
         self.force = array("i", d["force"]) if d.get("force") else None
         self.force_inverse = array("i", d["force_inverse"]) if d.get("force_inverse") else None
         self.friction = array("i", d["friction"]) if d.get("friction") else None
+        self.df_kind = d.get("df_kind", "poly")
         self.force_kind = d.get("force_kind", "poly")
         self.force_inverse_kind = d.get("force_kind", "poly")
         self.crc = 12345
@@ -810,3 +811,12 @@ def case_temporary_params_come_back_when_the_host_goes_silent(path):
     app.set_param("kp_pos", 1000)  # the host is back and sets a gain before any reset: it stays
     assert idle_steps(100) is None and app.get_param("kp_pos") == 1000
     return {"restored_at": restored_at, "tripped_at": tripped_at}
+
+
+def case_df_table(path, codes):
+    """D1* of pot 1's codes with a Df table (df_kind pwl): [D1*, D1] per code, as the board's
+    per-code table holds them."""
+    from firmware.measurement import Measurement
+
+    m = Measurement(Cal(load(path)["cal"]))
+    return [[m._d1(m.conv1(c, m.k1)), m.conv1(c, m.k1)] for c in codes]
