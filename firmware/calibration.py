@@ -16,9 +16,10 @@ one line, the CRC over that string) are still read. The payload repeats "schema"
 is also covered by the CRC. Payload keys: "schema", "board", "date", "pots" (identity of
 pot1/pot2), and the sections "pot1", "pot2" (each {"kind": "bcm3"|"pwl", "fixed": [ints],
 ...float coefficients, units and fit statistics for people}), and the optional "df", "force",
-"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null; the two force
-sections may also be {"kind": "pwl", ...} tables whose inputs are offset by FORCE_PWL_OFFSET, for
-a spring whose stiffness changes at a point, see firmware/measurement.py), and the optional
+"force_inverse" (each {"kind": "poly", "fixed": [ints], ...} or absent/null; each may also be a
+{"kind": "pwl", ...} table whose input is offset into 0..2**16, by DF_PWL_OFFSET for Df and
+FORCE_PWL_OFFSET for the force sections: for a Df that follows the pot tables' kinks, and a
+spring whose stiffness changes at a point, see firmware/measurement.py), and the optional
 "friction" ({"kind": "friction", "fixed": [h_mN] or [h_mN, ff_duty], ...}: the output block's
 Coulomb friction, see firmware/measurement.py, and the duty that makes the motor hold the spring
 at that force, which position control adds to break the block free, see firmware/controller.py), and the optional "stroke" ({"kind": "stroke", "fixed": [low_um,
@@ -48,7 +49,7 @@ SCHEMA = 2  # what the host writes; schema 1 is read too
 PAYLOAD_KEY = '\n"payload": '  # schema 2: the payload object starts after this
 POT_SECTIONS = ("pot1", "pot2")
 POLY_SECTIONS = ("df", "force", "force_inverse")
-TABLE_FORCE_SECTIONS = ("force", "force_inverse")  # may be pwl tables instead of polynomials
+TABLE_SECTIONS = ("df", "force", "force_inverse")  # may be pwl tables instead of polynomials
 FRICTION_SECTION = "friction"
 STROKE_SECTION = "stroke"
 STROKE_MAX_UM = 65535  # measurement.STROKE_CLAMP_UM: positions beyond it are clamped anyway
@@ -180,10 +181,10 @@ def poly_constants(section, name):
     if section is None:
         return None
     kind = section.get("kind", "poly") if isinstance(section, dict) else None
-    if kind == "pwl" and name in TABLE_FORCE_SECTIONS:
+    if kind == "pwl" and name in TABLE_SECTIONS:
         values = _int_list(section, name)
         check_pwl(values, name)
-        _check(values[1] == 0, name, "a force table takes its input unshifted")
+        _check(values[1] == 0, name, "a %s table takes its input unshifted" % name)
         return array("i", values)
     if kind != "poly":
         raise CalibrationError("section %s: not a polynomial" % name)
@@ -225,7 +226,7 @@ def stroke_constants(section, name=STROKE_SECTION):
 
 class Calibration:
     """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None
-    (force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
+    (df_kind, force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
     as [low_um, high_um] or None."""
 
     def __init__(self, body, crc):
@@ -237,6 +238,7 @@ class Calibration:
         self.df = poly_constants(body.get("df"), "df")
         self.force = poly_constants(body.get("force"), "force")
         self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
+        self.df_kind = section_kind(body.get("df"))
         self.force_kind = section_kind(body.get("force"))
         self.force_inverse_kind = section_kind(body.get("force_inverse"))
         self.friction = friction_constants(body.get(FRICTION_SECTION))

@@ -1,7 +1,7 @@
 """Measurement: ADC codes to D1, D2, the Df-corrected D1*, the spring deformation and the force.
 
     D1 = conv(pot1 code)   D2 = conv(pot2 code)       (bcm3 or pwl, per pot, from the calibration)
-    D1* = D1 - Df_hat(D1)                             (poly, when the Df step was calibrated)
+    D1* = D1 - Df_hat(D1)                             (poly or pwl table, when the Df step was calibrated)
     d = D1* - D2                                      (um)
     F = F0(d) + h * s                                 (poly or pwl table, mN, when the force step was calibrated)
 
@@ -27,7 +27,7 @@ from firmware.poly_fixed import poly
 from array import array
 
 from firmware.portable import const, ptr16, ptr32, zeros
-from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
+from firmware.pwl_fixed import DF_PWL_OFFSET, FORCE_PWL_OFFSET, pwl
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -61,7 +61,8 @@ BASE1 = const(13)  # the tables hold D - BASE as uint16
 BASE2 = const(14)
 FF_DUTY = const(15)  # the duty that holds the spring at the friction force (0: no feed-forward)
 F_IN = const(16)  # added to d before F0 is evaluated: 0 for a polynomial, FORCE_PWL_OFFSET for a table
-WORDS = const(17)
+DF_IN = const(17)  # added to D1 before Df is evaluated (per step, without tables): 0 or DF_PWL_OFFSET
+WORDS = const(18)
 TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
 
@@ -114,6 +115,9 @@ class Measurement:
         self.conv2 = _converter(kind2)
         self.poly = poly
         self.k_df = calibration.df
+        df_table = getattr(calibration, "df_kind", "poly") == "pwl"
+        self.df_eval = pwl if df_table else poly
+        self.df_in = DF_PWL_OFFSET if df_table else 0
         self.k_force = calibration.force
         self.k_force_inv = calibration.force_inverse
         # F0(d) and d(F0): polynomials, or tables (a spring pair whose preload ends inside the
@@ -129,6 +133,7 @@ class Measurement:
         st[FRIC] = fr[0] if fr is not None else 0
         st[FF_DUTY] = fr[1] if fr is not None and len(fr) > 1 else 0
         st[F_IN] = FORCE_PWL_OFFSET if table else 0
+        st[DF_IN] = self.df_in
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
         st[LAST_CODE] = (1 << self.adc_bits) - 1
@@ -194,7 +199,7 @@ class Measurement:
         """D1* from pot 1's curve value: clamped, less the Df correction when calibrated."""
         d1 = _clamp_um(raw_um)
         if self.k_df is not None:
-            d1 = _clamp_um(d1 - poly(d1, self.k_df))
+            d1 = _clamp_um(d1 - self.df_eval(d1 + self.df_in, self.k_df))
         return d1
 
     @property
@@ -261,7 +266,7 @@ class Measurement:
             elif d1 < -STROKE_CLAMP_UM:
                 d1 = -STROKE_CLAMP_UM
             if s[HAS_DF]:
-                d1 = d1 - int(self.poly(d1, self.k_df))
+                d1 = d1 - int(self.df_eval(d1 + s[DF_IN], self.k_df))
                 if d1 > STROKE_CLAMP_UM:
                     d1 = STROKE_CLAMP_UM
                 elif d1 < -STROKE_CLAMP_UM:

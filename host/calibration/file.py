@@ -37,6 +37,7 @@ from firmware.calibration import (
     pot_constants,
     stroke_constants,
 )
+from firmware.pwl_fixed import DF_PWL_OFFSET
 from host.errors import UserError
 from host.calibration.fixed_export import export_force_table, export_poly, export_pot
 
@@ -236,13 +237,13 @@ def poly_section(coeffs_high_first, x_range, in_scale, out_scale, units, stats=N
     }
 
 
-def force_table_section(knots_in, knots_out, in_range, units, stats=None):
-    """A force section as a table (F0(d) or d(F0)): knots in natural units (mm, N), `units` as
-    for poly_section."""
+def force_table_section(knots_in, knots_out, in_range, units, stats=None, df=False):
+    """A force section as a table (F0(d) or d(F0)), or with `df` the Df section as one: knots in
+    natural units (mm, N), `units` as for poly_section."""
     try:
-        fixed = export_force_table(knots_in, knots_out, in_range)
+        fixed = export_force_table(knots_in, knots_out, in_range, offset=DF_PWL_OFFSET if df else None, rising=not df)
     except ValueError as e:
-        raise UserError("cannot export the force table for the firmware: %s" % e) from None
+        raise UserError("cannot export the %s table for the firmware: %s" % ("Df" if df else "force", e)) from None
     return {
         "kind": "pwl",
         "knots_in": [float(v) for v in knots_in],

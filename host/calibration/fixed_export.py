@@ -230,9 +230,11 @@ def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM,
     return _finish("pwl", k, pwl_fixed.pwl, codes, ref, bound, "pwl table")
 
 
-def export_force_table(knots_in, knots_out, in_range, in_scale=1000.0, out_scale=1000.0):
-    """k for `firmware.pwl_fixed.pwl` evaluating a force table (F0(d): d mm -> N, or its inverse:
-    N -> mm) on integer inputs (um or mN) offset by FORCE_PWL_OFFSET, output in um or mN.
+def export_force_table(knots_in, knots_out, in_range, in_scale=1000.0, out_scale=1000.0, offset=None, rising=True):
+    """k for `firmware.pwl_fixed.pwl` evaluating a table section (F0(d): d mm -> N, its inverse:
+    N -> mm, or Df(D1): mm -> mm) on integer inputs (um or mN) plus `offset` (default
+    FORCE_PWL_OFFSET; a Df table takes DF_PWL_OFFSET), output in um or mN. `rising`: the values
+    must rise too (a spring's force; a Df need not).
 
     The end segments are carried on straight to `in_range` (the cavity's +-2 mm, or the force
     range), where the firmware then clamps: a spring beyond the calibrated forces is taken to go
@@ -241,8 +243,9 @@ def export_force_table(knots_in, knots_out, in_range, in_scale=1000.0, out_scale
     yo = np.asarray(knots_out, dtype=float)
     if xi.ndim != 1 or len(xi) < 2 or len(xi) != len(yo) or not (np.all(np.isfinite(xi)) and np.all(np.isfinite(yo))):
         raise ValueError("a force table needs at least 2 finite knots with as many values")
-    if np.any(np.diff(xi) <= 0) or np.any(np.diff(yo) <= 0):
+    if np.any(np.diff(xi) <= 0) or rising and np.any(np.diff(yo) <= 0):
         raise ValueError("a force table must rise strictly (a spring's force grows with its deformation)")
+    offset = pwl_fixed.FORCE_PWL_OFFSET if offset is None else int(offset)
     lo, hi = float(in_range[0]), float(in_range[1])
     if lo < xi[0]:
         yo = np.concatenate([[yo[0] - (yo[1] - yo[0]) / (xi[1] - xi[0]) * (xi[0] - lo)], yo])
@@ -250,10 +253,10 @@ def export_force_table(knots_in, knots_out, in_range, in_scale=1000.0, out_scale
     if hi > xi[-1]:
         yo = np.concatenate([yo, [yo[-1] + (yo[-1] - yo[-2]) / (xi[-1] - xi[-2]) * (hi - xi[-1])]])
         xi = np.concatenate([xi, [hi]])
-    X = [round(v * in_scale) + pwl_fixed.FORCE_PWL_OFFSET for v in xi]
+    X = [round(v * in_scale) + offset for v in xi]
     Y = [round(v * out_scale) for v in yo]
     if X[0] < 0 or X[-1] > 2**16 or any(b <= a for a, b in zip(X, X[1:])):
-        raise ValueError("force table inputs must be distinct and within +-%d units" % pwl_fixed.FORCE_PWL_OFFSET)
+        raise ValueError("table inputs must be distinct and within %d..%d units" % (-offset, 2**16 - offset))
     if max(abs(v) for v in Y) >= 2**29 or any(
             (b - a) * abs(d - c) > SEGMENT_LIMIT for a, b, c, d in zip(X, X[1:], Y, Y[1:])):
         raise ValueError("force table values too large for 31 bits")

@@ -18,7 +18,7 @@ from firmware.calibration import (
     stroke_constants,
 )
 from firmware.poly_fixed import poly
-from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
+from firmware.pwl_fixed import DF_PWL_OFFSET, FORCE_PWL_OFFSET, pwl
 
 POLY_NAMES = {"df": "Df_hat(D1), assembly error", "force": "F0(d), force of the spring deformation",
               "force_inverse": "d(F0), deformation for a force target"}
@@ -39,17 +39,21 @@ def _is_table(section):
     return isinstance(section, dict) and section.get("kind") == "pwl"
 
 
+def _offset(name):
+    return DF_PWL_OFFSET if name == "df" else FORCE_PWL_OFFSET
+
+
 def _poly_inputs(section, name):
     """(k, inputs): the section's words and 1001 inputs over its range (a force table's inputs
     are in the section's own units, without FORCE_PWL_OFFSET)."""
     k = poly_constants(section, name)
-    lo, hi = (k[2] - FORCE_PWL_OFFSET, k[1 + k[0]] - FORCE_PWL_OFFSET) if _is_table(section) else (k[2], k[3])
+    lo, hi = (k[2] - _offset(name), k[1 + k[0]] - _offset(name)) if _is_table(section) else (k[2], k[3])
     return k, np.unique(np.linspace(lo, hi, 1001).round().astype(int))
 
 
-def evaluate(section, k, x):
-    """What the board computes for a polynomial or force-table section at integer input x."""
-    return pwl(int(x) + FORCE_PWL_OFFSET, k) if _is_table(section) else poly(int(x), k)
+def evaluate(section, k, x, name="force"):
+    """What the board computes for a polynomial or table section `name` at integer input x."""
+    return pwl(int(x) + _offset(name), k) if _is_table(section) else poly(int(x), k)
 
 
 def describe_pot(section, name):
@@ -76,7 +80,7 @@ def describe_poly(section, name):
     k, x = _poly_inputs(section, name)
     units = section.get("units") or ["in", "out"]
     coeffs = section.get("coefficients") or []
-    y = np.array([evaluate(section, k, v) for v in x])
+    y = np.array([evaluate(section, k, v, name) for v in x])
     shape = "a %d-knot table" % k[0] if _is_table(section) else "degree %d" % (len(coeffs) - 1 if coeffs else k[0])
     lines = ["%s: %s, %s over %s..%s %s -> %s..%s %s" % (
         name, POLY_NAMES.get(name, "polynomial"), shape, x[0], x[-1], units[0], int(y.min()), int(y.max()), units[1])]
@@ -142,7 +146,7 @@ def compare(a, b):
             x = xa[(xa >= max(xa[0], xb[0])) & (xa <= min(xa[-1], xb[-1]))]
             units = (sa.get("units") or ["", ""])[1]
             if len(x):
-                diff = np.abs(np.array([evaluate(sa, ka, v) - evaluate(sb, kb, v) for v in x], dtype=float))
+                diff = np.abs(np.array([evaluate(sa, ka, v, name) - evaluate(sb, kb, v, name) for v in x], dtype=float))
                 lines.append("%s: differs by %.0f %s at most over the common inputs %d..%d" % (name, diff.max(), units, x[0], x[-1]))
             else:
                 lines.append("%s: the input ranges do not overlap" % name)

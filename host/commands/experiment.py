@@ -27,6 +27,8 @@ def add_parser(subparsers):
     p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over full scale, mm (real boards)")
     p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force identification rounds (paper: 5; default 2)")
+    p.add_argument("--fix", action="store_true", help="apply the board-file settings bringup recommends (wiring, "
+                   "directions, oversample for noisy pots): write the corrected board file and flash it")
     p.set_defaults(func=run)
 
 
@@ -43,7 +45,8 @@ def run(args):
     except OSError as exc:
         raise UserError("cannot create %s: %s" % (out_dir, exc.strerror)) from None
     prompter = Prompter(yes=args.yes or args.port == "sim")
-    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), **method_options(args))
+    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), fix=args.fix,
+                   **method_options(args))
     results = {}
     try:
         with Session(args.port, args.board, None, say=prompter.say) as session:

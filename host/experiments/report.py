@@ -45,6 +45,11 @@ def _met(ok):
     return "met" if ok else "**NOT met**"
 
 
+def _df_model(fig5):
+    """'order 7' for a polynomial Df, '14-knot table' for a table."""
+    return ("%d-knot table" if fig5.get("model") == "table" else "order %d") % fig5["order"]
+
+
 def _f(v, digits=3):
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else ("%.*f" % (digits, v))
 
@@ -78,10 +83,10 @@ def write(out_dir, r, opts, command=None):
             _f(r.get("stroke_mm", (None, None))[0], 1), _f(r.get("stroke_mm", (None, None))[1], 1)))
     add("")
     m = r.get("method", {})
-    add("**Method.** Pot model: %s -> pot 1 %s, pot 2 %s. Df order: %s -> %d. Force: order %s -> %s, gauge side(s) %s, "
+    add("**Method.** Pot model: %s -> pot 1 %s, pot 2 %s. Df order: %s -> %s. Force: order %s -> %s, gauge side(s) %s, "
         "block friction %s. (`--paper-method` runs the paper's choices: BCM-3, quartic Df, quadratic force fits "
         "without friction, gauge on the 60 mm side.) Timings: %s." % (
-            r["model"], r["pot_models"]["pot1"], r["pot_models"]["pot2"], m.get("df_order"), r["fig5"]["order"],
+            r["model"], r["pot_models"]["pot1"], r["pot_models"]["pot2"], m.get("df_order"), _df_model(r["fig5"]),
             m.get("force_order"), m.get("force_order_chosen", "-"),
             m.get("gauge_sides"), "identified and compensated" if m.get("friction") else "not modelled",
             ", ".join("%s %.0f s" % kv for kv in r["timings"].items())))
@@ -102,10 +107,10 @@ def write(out_dir, r, opts, command=None):
     add("| --- | --- | --- | --- |")
     add("| BCM vs PCM (Fig. 3a) | BCM-3 ~ PCM-10 | BCM-3 objective %s; PCM needs order %s to match | - |" % (
         _f(bcm3, 2), match if match else "> %d" % max(x["order"] for x in rows3)))
-    add("| Df calibration (Fig. 5) | peak 4.9 -> 0.9 mm (-81.6 %%) | peak %s -> %s mm of 1 mm bin means (%+.1f %%; order %d); "
+    add("| Df calibration (Fig. 5) | peak 4.9 -> 0.9 mm (-81.6 %%) | peak %s -> %s mm of 1 mm bin means (%+.1f %%; %s); "
         "%s mm of single samples | <= 0.1 mm (bin means): %s |" % (
             _f(fig5["peak_before_mm"], 2), _f(fig5["peak_after_binned_mm"], 3),
-            100 * (fig5["peak_after_binned_mm"] / fig5["peak_before_mm"] - 1), fig5["order"], _f(fig5["peak_after_mm"], 3),
+            100 * (fig5["peak_after_binned_mm"] / fig5["peak_before_mm"] - 1), _df_model(fig5), _f(fig5["peak_after_mm"], 3),
             _met(fig5["peak_after_binned_mm"] <= TARGETS["df_mm"])))
     add("| displacement control (Fig. 7), max error 1-59 mm | 14.4 -> 4.2 mm (-70.8 %%) | %s -> %s mm (%+.1f %%) | <= 0.1 mm: %s |" % (
         _f(before), _f(after), 100 * (after / before - 1), _met(after <= TARGETS["displacement_mm"])))
@@ -124,10 +129,10 @@ def write(out_dir, r, opts, command=None):
     off = r.get("paper_method_offline")
     if off:
         add("The paper's fits on this run's own sweeps: BCM-3 leaves pot 1 rms %s / max %s mm and pot 2 rms %s / max %s mm "
-            "(the chosen pot curves: see Calibration); a quartic Df leaves a %s mm peak of 1 mm bin means (order %d here: %s mm); "
+            "(the chosen pot curves: see Calibration); a quartic Df leaves a %s mm peak of 1 mm bin means (%s here: %s mm); "
             "a quadratic F0(d) without the friction term on the 60 mm side's points leaves rms %s N (this run's F0: %s N)." % (
                 _f(off["pot1"]["rms_mm"]), _f(off["pot1"]["max_mm"]), _f(off["pot2"]["rms_mm"]), _f(off["pot2"]["max_mm"]),
-                _f(off["df4_binned_mm"]), fig5["order"], _f(fig5["peak_after_binned_mm"]),
+                _f(off["df4_binned_mm"]), _df_model(fig5), _f(fig5["peak_after_binned_mm"]),
                 _f(off.get("force2_rms_n")), _f(r["force_fit"].get("rms_n"))))
         add("")
 
@@ -166,9 +171,9 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("## Fig. 5: assembly error Df before and after")
     add("")
-    add("Order %d polynomial; peak |Df| %s mm before; after, peak residual %s mm of the means over 1 mm of D1 (the "
+    add("%s; peak |Df| %s mm before; after, peak residual %s mm of the means over 1 mm of D1 (the "
         "curve's error) and %s mm of single samples (that includes the noise of two pot readings), rms %s mm; %d samples. "
-        "Paper: 4.9 -> 0.9 mm." % (fig5["order"], _f(fig5["peak_before_mm"]), _f(fig5["peak_after_binned_mm"]),
+        "Paper: 4.9 -> 0.9 mm." % (_df_model(fig5).capitalize(), _f(fig5["peak_before_mm"]), _f(fig5["peak_after_binned_mm"]),
                                    _f(fig5["peak_after_mm"]), _f(fig5["rms_after_mm"]), fig5["n_samples"]))
     add("")
     add("![Fig. 5](calibration-df.png)")

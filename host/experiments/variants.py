@@ -34,7 +34,7 @@ def write_nominal(path, calibrated_path, pot_data, adc_bits):
 
 def write_without_df(path, calibrated_path):
     doc = read_calibration(calibrated_path)
-    x_range = doc["df"]["x_range"]
+    x_range = doc["df"].get("x_range") or doc["df"]["in_range"]
     doc["df"] = poly_section([0.0], x_range, 1000.0, 1000.0, ("um", "um"), {"note": "Df correction off"})
     write_calibration(path, doc)
     return path

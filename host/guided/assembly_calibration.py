@@ -13,8 +13,8 @@ import numpy as np
 
 from firmware.calibration import CalibrationError, convert, load_calibration
 from host.errors import UserError
-from host.calibration.file import poly_section
-from host.fitting.assembly import binned_peak, fit_df
+from host.calibration.file import force_table_section, poly_section
+from host.fitting.assembly import binned_peak, df_table, fit_df
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 
@@ -66,20 +66,33 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     ]
     if order != chosen:
         lines.append("Df: order %d needs more than 31 bits in the firmware's integers: order %d used" % (chosen, order))
+    table = df_table(x, df, min(scores.values())) if opts.df_order == "auto" else None
+    if table is not None:
+        kx, ky, table_scores = table
+        resid = df - np.interp(x, kx, ky)
+        section = force_table_section(kx, ky, domain, ("um", "um"), {}, df=True)
+        lines.append("Df: a %d-knot table predicts held-out samples better than any polynomial (cross-validated "
+                     "rms by knots: %s): it follows the kinks the pot tables leave in D1 - D2" % (
+                         len(kx), ", ".join("%d: %.1f um" % (n, 1000 * v) for n, v in table_scores.items())))
+        lines.append("Df: the table leaves a peak of %.3f mm of single samples, %.3f mm of 1 mm bin means (rms %.1f um)"
+                     % (np.max(np.abs(resid)), binned_peak(x, resid), 1000 * np.sqrt(np.mean(resid**2))))
+        order = len(kx)
     ok = span >= opts.limits.min_range_mm
     if not ok:
         lines.append("Df: FAIL the sweep covered only %.1f mm: let the block run end to end" % span)
-    stats = {"order": order, "peak_before_mm": float(np.max(np.abs(df))), "peak_after_mm": float(np.max(np.abs(resid))),
+    stats = {"order": order, "model": "table" if table is not None else "poly",
+             "peak_before_mm": float(np.max(np.abs(df))), "peak_after_mm": float(np.max(np.abs(resid))),
              "peak_after_binned_mm": binned_peak(x, resid),
              "rms_after_mm": float(np.sqrt(np.mean(resid**2))), "n_samples": int(len(x))}
     section["fit"] = stats
     png = opts.out_dir / "calibration-df.png"
-    plot_df(png, x, df, coeffs, resid, direction)
+    curve = (lambda g: np.interp(g, table[0], table[1])) if table is not None else (lambda g: np.polyval(coeffs, g))
+    plot_df(png, x, df, curve, resid, direction, "%d-knot table" % order if table is not None else "order %d" % order)
     data = {"d1_mm": x, "df_mm": df, "resid_mm": resid, "coeffs": coeffs, "direction": direction, "stats": stats}
     return StepOutcome("assembly", {"df": section}, lines, [png], ok=ok, data=data)
 
 
-def plot_df(path, x, df, coeffs, resid, direction=None):
+def plot_df(path, x, df, curve, resid, direction=None, label="order"):
     from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
     fig = Figure(figsize=(7.5, 4.5))
@@ -87,7 +100,7 @@ def plot_df(path, x, df, coeffs, resid, direction=None):
     ax.plot(x, df, ".", ms=2, color="tab:orange", label="Df = D1 - D2 before (peak %.2f mm)" % np.max(np.abs(df)))
     ax.plot(x, resid, ".", ms=2, color="tab:blue", label="after: Df - Df_hat (peak %.3f mm)" % np.max(np.abs(resid)))
     grid = np.linspace(np.min(x), np.max(x), 400)
-    ax.plot(grid, np.polyval(coeffs, grid), "k-", lw=1, label="Df_hat, order %d" % (len(coeffs) - 1))
+    ax.plot(grid, curve(grid), "k-", lw=1, label="Df_hat, %s" % label)
     ax.axhline(0, color="0.5", lw=0.6)
     ax.set_xlabel("D1 (mm)")
     ax.set_ylabel("mm")

@@ -34,6 +34,25 @@ HOLD_DUTY = 6500  # against the end stop: past the spring's preload, a few tens 
 HOLD_S = 0.3
 REST_S = 0.4
 NOISY_LSB = 8.0  # rest noise above this many codes (std) is worth a look at the wiring
+# Rest noise (std of the board's averaged reading) above QUIET_CODES * 1.25 costs force control:
+# the load-force estimate rides the pots' noise near small forces (5 N steps 2-5 % off at 1.5-2.5
+# codes on a 17 N/mm spring, within 2 % at 1.25). Reads per step are raised, in powers of two up
+# to OVERSAMPLE_MAX, to bring it to about QUIET_CODES; each read costs ~450 Cortex-M0
+# instructions (docs/firmware.md), so 16 adds ~16k to a ~20k step: within a 1 kHz period.
+QUIET_CODES = 1.0
+OVERSAMPLE_MAX = 16
+
+
+def oversample_for(noise_codes, oversample):
+    """The reads per step that bring rest noise `noise_codes` (seen at `oversample`) to about
+    QUIET_CODES, a power of two within OVERSAMPLE_MAX; `oversample` when it is quiet enough."""
+    if noise_codes <= 1.25 * QUIET_CODES or oversample >= OVERSAMPLE_MAX:
+        return oversample
+    want = oversample * (noise_codes / QUIET_CODES) ** 2
+    n = 1
+    while n < want and n < OVERSAMPLE_MAX:
+        n *= 2
+    return max(n, oversample)
 END_MARGIN_MM = 8.0  # pulses start at least this far from an end stop
 
 
@@ -62,6 +81,11 @@ class Wiring:
             want = {"pot2" if p == "pot1" else "pot1" for p in want}  # a flag follows its pot
         if want != invert:
             out["pot_invert"] = sorted(want)
+        if self.noise:
+            now = int(board.get("oversample", 4))
+            n = oversample_for(max(self.noise.get("raw1", 0.0), self.noise.get("raw2", 0.0)), now)
+            if n > now:
+                out["oversample"] = n
         return out
 
 
@@ -75,8 +99,9 @@ def _mpy_of_host():
     return "%s.%s" % m.groups() if m else None
 
 
-def check_firmware(status, loop_hz):
-    """Lines and problems about what runs the firmware and how its loop keeps time."""
+def check_firmware(status, loop_hz, simulated=False):
+    """Lines and problems about what runs the firmware and how its loop keeps time (on a virtual
+    board a long step says how busy this computer is, not what a board would do: a line only)."""
     lines, problems = [], []
     interp = status.get("interpreter") or "unknown"
     word = status.get("mpy")
@@ -94,7 +119,7 @@ def check_firmware(status, loop_hz):
         problems.append("the loop runs every %d us, not the %.0f us the board file asks (loop_hz %d): check timer_api, "
                         "timer_id and timer_tick_hz in the board file" % (period, nominal, loop_hz))
     if status.get("step_us_max") and status["step_us_max"] > 0.8 * nominal:
-        problems.append("the longest step took %d us of a %.0f us period: lower loop_hz or oversample" % (
+        (lines if simulated else problems).append("the longest step took %d us of a %.0f us period: lower loop_hz or oversample" % (
             status["step_us_max"], nominal))
     return lines, problems
 
@@ -142,6 +167,13 @@ def probe_wiring(session, rig, prompter, opts):
         elif std > NOISY_LSB:
             w.problems.append("%s is noisy (%.1f codes std at rest): check its ground, shield the wires, or raise "
                               "oversample in the board file" % (label, std))
+        else:
+            now = int(board.get("oversample", 4))
+            n = oversample_for(std, now)
+            if n > now:
+                w.lines.append("%s: %.1f codes of noise at rest is more than force control near 5 N tolerates (the "
+                               "load-force estimate rides it): \"oversample\": %d in the board file brings it to about "
+                               "%.1f (--fix writes it)" % (label, std, n, std * (now / n) ** 0.5))
     if w.problems:
         return w
     block = _block_mm(rest, board, opts)
@@ -246,7 +278,7 @@ def write_fixed_board(board_path, fixes, out_dir):
 def calibrate_bringup(session, rig, prompter, opts):
     """The bringup step: checks, fixes with consent, checks again; a StepOutcome whose section
     "bringup" records what was found."""
-    lines, problems = check_firmware(session.client.call("status"), session.board["loop_hz"])
+    lines, problems = check_firmware(session.client.call("status"), session.board["loop_hz"], session.board.get("simulated", False))
     w = probe_wiring(session, rig, prompter, opts)
     found = describe(w, session.board_path)
     fixes = w.fixes(session.board)
@@ -258,7 +290,10 @@ def calibrate_bringup(session, rig, prompter, opts):
         session.flash_board(path)
         w.lines.append("fixed in %s: %s (use --board %s from now on)" % (path, json.dumps(fixes), path))
         again = probe_wiring(session, rig, prompter, opts)
-        w.lines.extend("after the fix: " + line for line in again.lines)
+        timing, slow = check_firmware(session.client.call("status"), session.board["loop_hz"],  # more reads take time
+                                      session.board.get("simulated", False))
+        w.lines.extend("after the fix: " + line for line in again.lines + timing[1:])
+        again.problems += slow
         found = describe(again, session.board_path)
         w.problems = again.problems
         if again.fixes(session.board):

@@ -40,7 +40,7 @@ fit_plots.plot_fit(sys.argv[1] + "/fit.png", x, x * 60 / 4095, fit_model("bcm", 
 from host.experiments import displacement, force_runs
 from host.guided import assembly_calibration
 d1 = np.linspace(0, 60, 100)
-assembly_calibration.plot_df(sys.argv[1] + "/df.png", d1, d1 * 0.01, np.array([0.01, 0.0]), d1 * 0.0)
+assembly_calibration.plot_df(sys.argv[1] + "/df.png", d1, d1 * 0.01, lambda g: g * 0.01, d1 * 0.0)
 displacement.plot(sys.argv[1] + "/fig7.png", [{"target": 1.0, "error": 0.1}], [{"target": 1.0, "error": 0.01}])
 force_runs.plot_blocking(sys.argv[1] + "/fig8.png", [("with Df", {"t": d1, "d2": d1, "final": 60.0, "target_n": 5.0})])
 assert backend() == before, ("drawing", backend())

@@ -741,3 +741,13 @@ def case_temporary_params_come_back_when_the_host_goes_silent(path):
     app.set_param("kp_pos", 1000)  # the host is back and sets a gain before any reset: it stays
     assert idle_steps(100) is None and app.get_param("kp_pos") == 1000
     return {"restored_at": restored_at, "tripped_at": tripped_at}
+
+
+def case_df_table(path, codes):
+    """D1* of pot 1's codes with the calibration file at `path`, whose Df is a table (df_kind pwl):
+    [D1*, D1] per code, as the board's per-code table holds them."""
+    from firmware.calibration import load_calibration as load_file
+    from firmware.measurement import Measurement
+
+    m = Measurement(load_file(path))
+    return [[m._d1(m.conv1(c, m.k1)), m.conv1(c, m.k1)] for c in codes]

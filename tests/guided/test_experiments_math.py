@@ -94,7 +94,7 @@ def test_report_renders_every_section_and_judges_each_target(tmp_path):
     assert "no blocking at +-1 to 10 N: met" in lines["force control 5 N at no load from 30 mm (Fig. 8)"]
     assert "worst of all 10 steps (both signs, loading and unloading) 1.0 %" in text and "<= 2 %: met" in text
     assert "0.30 N in the simulated actuator's file, 6 % of 5 N" in text and "(0.5 and 59.5 mm)" in text
-    assert "Df order: auto -> 7. Force: order auto -> 4" in text and "2 force identification rounds" in text
+    assert "Df order: auto -> order 7. Force: order auto -> 4" in text and "2 force identification rounds" in text
     assert "a 0.5 N preload took up the fibre's slack" in text
     assert "| 30 | 28.000 | 2.000 | 29.950 | 0.050 |" in text and "0.050 (not settled)" in text  # 59 mm unsettled
     worse = report.write(tmp_path, _results(0.5, 0.05, 3.0), opts).read_text()

@@ -1,0 +1,61 @@
+"""The assembly error Df: a polynomial in D1 where one follows it, a free-knot table where the
+pots' own tables leave kinks in D1 - D2; and the board evaluates a Df table as the host does."""
+
+from pathlib import Path
+
+import numpy as np
+
+from firmware.pwl_fixed import DF_PWL_OFFSET, pwl
+from host.calibration.file import force_table_section
+from host.fitting.assembly import binned_peak, choose_order, df_table
+from testkit.interpreters import on_cpython, on_micropython
+from testkit.model import write_model_calibration
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+
+
+def _sweep(kinks, seed=4):
+    rng = np.random.default_rng(seed)
+    x = np.sort(rng.uniform(0.0, 60.0, 2500))
+    v = (x - 30.0) / 30.0
+    df = 0.4 * v**4 + 0.1 * v - 0.2 * v**2  # a mounting error, smooth in the position
+    for at, slope in kinks:  # what a pot table's knots leave: changes of slope
+        df += slope * np.abs(x - at)
+    return x, df + rng.normal(0.0, 0.06, len(x))
+
+
+def test_a_smooth_df_keeps_its_polynomial():
+    x, df = _sweep([])
+    _, scores = choose_order(x, df, "auto", floor=4)
+    assert df_table(x, df, min(scores.values())) is None
+
+
+def test_a_df_that_no_polynomial_follows_gets_a_table():
+    """A no-load assembly sweep recorded from a random simulated actuator (bench_robustness seed
+    1002: noisy pots, mounting error on both, free-knot pot tables): the polynomial's hold-out
+    error still falls at order 12 and order 10 leaves 0.13 mm of 1 mm bin means; a 6-knot table
+    reaches the noise (the target is 0.1 mm)."""
+    x, df = np.loadtxt(DATA / "assembly-sweep-seed1002.csv", delimiter=",", unpack=True)
+    order, scores = choose_order(x, df, "auto", floor=4)
+    table = df_table(x, df, min(scores.values()))
+    assert table is not None
+    kx, ky, _ = table
+    poly_peak = binned_peak(x, df - np.polyval(np.polyfit(x, df, min(order, 10)), x))
+    table_peak = binned_peak(x, df - np.interp(x, kx, ky))
+    assert table_peak < 0.1 < poly_peak, (table_peak, poly_peak)
+
+
+def test_the_board_subtracts_a_df_table_as_the_host_computes_it(tmp_path):
+    kx = np.array([0.0, 10.0, 25.0, 40.0, 60.0])
+    ky = np.array([1.2, 0.3, -0.1, 0.2, 1.0])
+    section = force_table_section(kx, ky, (-1.0, 61.0), ("um", "um"), df=True)
+    path = tmp_path / "cal.json"
+    write_model_calibration(path, df=section)
+    codes = list(range(0, 4096, 97))
+    call = "case_df_table(%r, %r)" % (str(path), codes)
+    here = on_cpython("tests.firmware.app_cases", call)
+    assert here == on_micropython("tests.firmware.app_cases", call)
+    for d1_star, d1 in here:
+        expected = d1 - pwl(d1 + DF_PWL_OFFSET, section["fixed"])
+        assert d1_star == max(-65535, min(65535, expected))
+        assert abs((d1 - d1_star) / 1000.0 - np.interp(d1 / 1000.0, kx, ky)) < 0.002 or not -1000 <= d1 <= 61000
