@@ -22,7 +22,7 @@ from host.guided.rig import reference_mm
 # block off the end stops, so the targets span the project's 1-59 mm.
 TARGETS_MM = (1, 5, 10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 59)
 # Settled: the 0.1 s mean of the firmware's D2 within SETTLE_UM of the target for 0.2 s (board
-# time; host.link.board_client.settle). The settle time is from the command to entering that band
+# time; host.guided.acquire.settle). The settle time is from the command to entering that band
 # for good; the error is then the reference's 0.3 s mean against the target.
 SETTLE_UM = 50
 
