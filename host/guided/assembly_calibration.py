@@ -3,8 +3,8 @@
 With both pots calibrated and no load, the block sweeps end to end (forward and backward at a
 low duty, so the small friction deformation has both signs and averages out). D1 and D2 are
 computed on the host by the firmware's own integer converters from the calibration file (no
-second copy of the arithmetic), Df = D1 - D2 is fitted by a polynomial in D1 and exported as the
-`df` section.
+second copy of the arithmetic), Df = D1 - D2 is fitted by a polynomial in D1 (or a free-knot
+table, df_table) and exported as the `df` section.
 
 Order: the paper fits a quartic. But the mounting errors are smooth functions of the true
 positions, while the fit's variable is D1, which pot 1's own error bends: a quartic in the true
@@ -111,11 +111,17 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     ]
     if order != chosen:
         lines.append("Df: order %d needs more than 31 bits in the firmware's integers: order %d used" % (chosen, order))
-    table = df_table(x, df, min(scores.values())) if opts.df_order == "auto" else None
+    table = df_table(x, df) if opts.df_order == "auto" else None
+    if table is not None:
+        try:
+            table_section = force_table_section(table[0], table[1], domain, ("um", "um"), {}, df=True)
+        except UserError as exc:  # e.g. a D1 range the table's input offset cannot hold: keep the polynomial
+            lines.append("Df: a table would fit better but cannot be exported (%s): the polynomial is kept" % exc)
+            table = None
     if table is not None:
         kx, ky, table_scores = table
         resid = df - np.interp(x, kx, ky)
-        section = force_table_section(kx, ky, domain, ("um", "um"), {}, df=True)
+        section = table_section
         lines.append("Df: a %d-knot table predicts held-out samples better than any polynomial (cross-validated "
                      "rms by knots: %s): it follows the kinks the pot tables leave in D1 - D2" % (
                          len(kx), ", ".join("%d: %.1f um" % (n, 1000 * v) for n, v in table_scores.items())))
@@ -141,32 +147,36 @@ TABLE_KNOTS = range(6, 21, 2)
 TABLE_GAIN = 0.9  # a table replaces the polynomial when its hold-out error is at most this fraction
 
 
-def df_table(x, df, poly_cv, folds=5):
+def df_table(x, df, folds=5):
     """(knots_x, knots_y, {knots: cross-validated rms}) of the free-knot table with the fewest
     knots within 5 % of the best, when it predicts held-out samples at least TABLE_GAIN better
-    than the best polynomial; else None. The pots' own tables leave kinks at their knots in
-    D1 - D2, which a polynomial in D1 smooths over (seen on noisy random actuators: 0.11 mm of bin
-    means at order 10, the cross-validated error still falling at order 12)."""
+    than the best polynomial; else None. Both are scored on the same folds (interleaved over
+    D1), and a table's knots are chosen again inside each fold, so its score is as honest as the
+    polynomial's. The pots' own tables leave kinks at their knots in D1 - D2, which a polynomial
+    in D1 smooths over (seen on noisy random actuators: 0.13 mm of bin means at order 10, the
+    cross-validated error still falling at order 12)."""
     from host.piecewise_linear import fit_pwl, lsq_knot_values
 
     order = np.argsort(x, kind="stable")
     xs, ys = x[order], df[order]
     idx = np.arange(len(xs))
-    scores, knots = {}, {}
-    for k in TABLE_KNOTS:
-        kx = np.asarray(fit_pwl(xs, ys, k).coefficients["knots_x"])
-        err = []
-        for f in range(folds):
-            test = idx % folds == f
-            values = lsq_knot_values(xs[~test], ys[~test], kx)
-            err.append(ys[test] - np.interp(xs[test], kx, values))
-        scores[k] = float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
-        knots[k] = kx
+    tests = [idx % folds == f for f in range(folds)]
+
+    def cv(predict):
+        return float(np.sqrt(np.mean(np.concatenate([ys[t] - predict(xs[~t], ys[~t], xs[t]) for t in tests]) ** 2)))
+
+    poly_cv = min(cv(lambda a, b, c, n=n: np.polyval(np.polyfit(a, b, n), c)) for n in range(1, MAX_ORDER + 1))
+
+    def table(a, b, c, k):
+        kx = np.asarray(fit_pwl(a, b, k).coefficients["knots_x"])
+        return np.interp(c, kx, lsq_knot_values(a, b, kx))
+
+    scores = {k: cv(lambda a, b, c, k=k: table(a, b, c, k)) for k in TABLE_KNOTS}
     best = min(scores.values())
     if best > TABLE_GAIN * poly_cv:
         return None
     k = min(n for n, v in scores.items() if v <= 1.05 * best)
-    kx = knots[k]
+    kx = np.asarray(fit_pwl(xs, ys, k).coefficients["knots_x"])
     return kx, lsq_knot_values(xs, ys, kx), scores
 
 

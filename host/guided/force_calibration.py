@@ -206,7 +206,8 @@ class Drive:
 def fit_drive(duty, spring_n, friction_n):
     """The stalled motor's force per duty, from the force step's points (at each one the motor
     holds the spring still, so its force is the spring's), and the duty that holds the spring at
-    the friction force: (h - offset) / slope."""
+    the friction force: (h - min(offset, 0)) / slope (a negative offset is force the screw's own
+    friction takes before the spring gets any; a positive one is not counted on)."""
     duty = np.abs(np.asarray(duty, dtype=float))
     force = np.abs(np.asarray(spring_n, dtype=float))
     if len(duty) < 3 or np.ptp(duty) <= 0:
@@ -241,12 +242,15 @@ class ForceFit:
     def f0(self, d):
         """F0 at deformations d (mm), N; a table goes on straight past its end knots, as its export does."""
         d = np.asarray(d, dtype=float)
-        if self.kind != "pwl":
-            return np.polyval(self.coeffs_f, d)
-        kx, ky = self.knots_d, self.knots_f
-        lo = ky[0] + (d - kx[0]) * (ky[1] - ky[0]) / (kx[1] - kx[0])
-        hi = ky[-1] + (d - kx[-1]) * (ky[-1] - ky[-2]) / (kx[-1] - kx[-2])
-        return np.where(d < kx[0], lo, np.where(d > kx[-1], hi, np.interp(d, kx, ky)))
+        return table_value(d, self.knots_d, self.knots_f) if self.kind == "pwl" else np.polyval(self.coeffs_f, d)
+
+
+def table_value(x, kx, ky):
+    """A table at x, going on straight past its end knots (as host.fixed_export carries it on)."""
+    x = np.asarray(x, dtype=float)
+    lo = ky[0] + (x - kx[0]) * (ky[1] - ky[0]) / (kx[1] - kx[0])
+    hi = ky[-1] + (x - kx[-1]) * (ky[-1] - ky[-2]) / (kx[-1] - kx[-2])
+    return np.where(x < kx[0], lo, np.where(x > kx[-1], hi, np.interp(x, kx, ky)))
 
 
 def _design(d, s, order, friction):
@@ -290,14 +294,16 @@ def table_knots(d, spring, k):
     return np.asarray(fit_pwl(d[order], spring[order], k).coefficients["knots_x"])
 
 
-def cv_rms_table(d, f, s, kx, friction, folds=5):
-    """Root mean square hold-out error of a table F0 on the knots kx (interleaved folds)."""
+def cv_rms_table(d, f, s, k, friction, h0, folds=5):
+    """Root mean square hold-out error of a k-knot table F0 (interleaved folds, the same as the
+    polynomial's; the knots are chosen again inside each fold, so the score is not flattered)."""
     idx = np.arange(len(d))
     err = []
-    for k in range(folds):
-        test = idx % folds == k
+    for fold in range(folds):
+        test = idx % folds == fold
+        kx = table_knots(d[~test], f[~test] - h0 * s[~test], k)
         v, h = _solve_table(d[~test], f[~test], s[~test], kx, friction)
-        err.append(f[test] - np.interp(d[test], kx, v) - h * s[test])
+        err.append(f[test] - table_value(d[test], kx, v) - h * s[test])
     return float(np.sqrt(np.mean(np.concatenate(err) ** 2)))
 
 
@@ -348,7 +354,7 @@ def _try_table(fit, d, f, s, friction, poly_cv):
             values, h = _solve_table(d, f, s, kx, False)
         if np.all(np.diff(values) > 0):  # a knot span without data can fold the table: not a spring
             tables[k] = (kx, values, h)
-    fit.table_scores = {k: cv_rms_table(d, f, s, t[0], friction) for k, t in tables.items()}
+    fit.table_scores = {k: cv_rms_table(d, f, s, k, friction, fit.friction_n) for k in tables}
     if not fit.table_scores:
         return
     best = min(fit.table_scores.values())
@@ -400,6 +406,14 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
     fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
+    unexported = None
+    if fit.kind == "pwl":
+        try:
+            force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
+            force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
+        except UserError as exc:  # a table the firmware cannot hold: the polynomial it beat is kept
+            unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
+            fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, tables=False)
     drive = fit_drive(duty[taut], ft - fit.friction_n * st, fit.friction_n)
     plain = fit_force(dt, ft, st, fit.order_f, friction=False, tables=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
@@ -423,7 +437,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "friction force (position control adds it to break the block free)" % (
             1000 * drive.n_per_duty, drive.offset_n, drive.ff_duty) if drive.ff_duty else
         "force: no friction feed-forward for position control (%s)" % drive.why,
-    ]
+    ] + ([unexported] if unexported else [])
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
     stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
