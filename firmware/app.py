@@ -237,6 +237,7 @@ class App:
         elif c.mode == POSITION:
             if not -STROKE_CLAMP_UM <= value <= STROKE_CLAMP_UM:
                 raise ValueError("position target must be within +-%d um" % STROKE_CLAMP_UM)
+            c.st[PARKED] = 0  # a new target is a new move, however small (one store: IRQ-safe)
         elif c.mode == FORCE:
             if not -FORCE_TARGET_MAX_MN <= value <= FORCE_TARGET_MAX_MN:
                 raise ValueError("force target must be within +-%d mN" % FORCE_TARGET_MAX_MN)

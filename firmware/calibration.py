@@ -185,6 +185,9 @@ def poly_constants(section, name):
         values = _int_list(section, name)
         check_pwl(values, name)
         _check(values[1] == 0, name, "a %s table takes its input unshifted" % name)
+        n = values[0]
+        if name != "df":  # F0(d) and d(F0) rise: a force target needs a single deformation
+            _check(all(values[2 + n + i] < values[3 + n + i] for i in range(n - 1)), name, "a force table must rise")
         return array("i", values)
     if kind != "poly":
         raise CalibrationError("section %s: not a polynomial" % name)
@@ -208,6 +211,7 @@ def friction_constants(section, name=FRICTION_SECTION):
     _check(len(values) in (1, 2), name, "needs [friction mN] or [friction mN, feed-forward duty]")
     _check(0 <= values[0] <= FRICTION_MAX_MN, name, "friction must be 0..%d mN" % FRICTION_MAX_MN)
     _check(len(values) == 1 or 0 <= values[1] <= FF_DUTY_MAX, name, "feed-forward duty must be 0..%d" % FF_DUTY_MAX)
+    _check(len(values) == 1 or values[1] == 0 or values[0] > 0, name, "a feed-forward duty without friction to break")
     return array("i", values)
 
 

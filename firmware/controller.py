@@ -95,7 +95,7 @@ OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one
 HAS_MEAS = const(12)  # 1 while a Measurement is set (an int test is 2 instructions, `if obj` ~1300)
 LIM_LO = const(13)  # the soft stroke limits in force on D2, um (apply_params works them out)
 LIM_HI = const(14)
-EF = const(15)  # position mode: the error low-passed over ~16 steps, um (decides the friction feed-forward)
+EF = const(15)  # position mode: 16 x the error low-passed over ~16 steps, um (decides the friction feed-forward)
 PARKED = const(16)  # position mode with feed-forward: steps inside the deadband, up to _PARK_STEPS (parked)
 WORDS = const(17)
 
@@ -268,6 +268,7 @@ class Controller:
         duty = 0
         if mode != IDLE:
             cmd = 0
+            ff = 0
             if mode == OPEN_LOOP:
                 cmd = ((c[TARGET] + _B29) & _M30) - _B29
             elif mode == POSITION:
@@ -279,11 +280,13 @@ class Controller:
                 # it the loop neither pushes nor integrates: the block stays where friction holds
                 # it, and noise cannot walk the integral into a limit cycle.
                 e = (((c[TARGET] + _B29) & _M30) - _B29) - d2
-                ef = ((c[EF] + _B29) & _M30) - _B29
-                ef = ef + ((e - ef) >> 4)
-                c[EF] = ef
+                # kept x16 with rounding: a plain ef += (e - ef) >> 4 floors, and stalls up to
+                # 15 um below a rising error while it follows a falling one (a -7.5 um bias)
+                acc = ((c[EF] + _B29) & _M30) - _B29
+                acc = acc + e - ((acc + 8) >> 4)
+                c[EF] = acc  # |acc| <= 16 * 131070 < 2**22
+                ef = (acc + 8) >> 4
                 ki = p[P_KI_POS]
-                ff = 0
                 if ffd:
                     # Parked once the filtered error has stayed inside the deadband for PARK_STEPS
                     # (a block passing through the target at speed is not parked, or it coasts
@@ -372,7 +375,7 @@ class Controller:
                 elif cmd < prev - rate:
                     duty = prev - rate
             if mode != OPEN_LOOP:
-                self._pi_applied(duty)
+                self._pi_applied(duty - ff)  # what reached the motor of the PI's own output
         self._motor_set(duty)
         c[DUTY] = duty
         n = c[STEPS]

@@ -28,8 +28,9 @@ except ImportError:  # CPython: the same decorator must still be valid, as an id
 # A force table (F0(d) or d(F0)) takes a signed input (d in um, F0 in mN) plus this, so that its
 # knot "codes" lie in 0..2**16 like an ADC table's, with input shift 0.
 FORCE_PWL_OFFSET = 32768
-# A Df table takes D1 in um plus this: D1 from -4.096 to 61.44 mm maps onto 0..2**16.
-DF_PWL_OFFSET = 4096
+# A Df table takes D1 in um plus this: D1 from -2.768 to 62.768 mm (the stroke centred on 30 mm
+# with room for a few mm of stretch in pot 2's frame) maps onto 0..2**16.
+DF_PWL_OFFSET = 2768
 
 _B29 = const(536870912)  # sign fix of a knot value (see firmware/bcm_fixed.py)
 _M30 = const(1073741823)

@@ -37,7 +37,7 @@ def add_parser(subparsers):
     p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
     p.add_argument("--levels", type=ranged(int, 2, 50), default=8, help="force: loading steps of 5000/N duty each (default 8: 625), "
                    "taken until the gauge reads --force-range")
-    p.add_argument("--force-range", type=ranged(float, 1, 100), default=16.0, metavar="N",
+    p.add_argument("--force-range", type=ranged(float, 1, 25), default=16.0, metavar="N",
                    help="force: load until the gauge reads this many newtons (default 16: the paper's forces reach 15 N)")
     p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=9000, help="force: largest open-loop duty (default 9000)")
     p.add_argument("--anchor-mm", type=ranged(float, 0, 60), default=45.0, help="force: where the fibre goes taut, mm (default 45)")
@@ -152,6 +152,16 @@ def calibrate(args, say=print, ask=None, log=None):
         return run_steps(session, rig, prompter, steps, opts, log=log)
 
 
+def _stop_log(log, why):
+    """Record where the run stopped; a log that cannot be written must not hide why it stopped."""
+    try:
+        log.stop(why)
+    except OSError as exc:
+        import sys
+
+        print("warning: could not write the run log %s: %s" % (log.json_path, exc.strerror or exc), file=sys.stderr)
+
+
 def run(args):
     import sys
 
@@ -161,13 +171,13 @@ def run(args):
     try:
         accepted = calibrate(args, log=log)
     except StepRefused as exc:  # a verdict: said in the log, then the usual one line and status 2
-        log.stop(str(exc))
+        _stop_log(log, str(exc))
         raise
     except (Exception, KeyboardInterrupt) as exc:
         if not log.measured:  # nothing measured yet (no board, a bad option): the usual one line
             raise
         why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        log.stop(why)
+        _stop_log(log, why)
         print("error: the calibration stopped during %s: %s; what it measured is in %s and %s" % (
             log.results["phase"], why, log.json_path, log.report_path), file=sys.stderr)
         return 1

@@ -13,7 +13,7 @@ from pathlib import Path
 
 
 from host.experiments import displacement, force_runs, model_compare, report, variants
-from host.guided.flow import STEPS, run_steps
+from host.guided.flow import BRINGUP, STEPS, run_steps
 from host.guided.force_calibration import gauge_sides
 
 
@@ -131,7 +131,9 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
 
     log = RunLog(opts.out, "host experiment paper", board=session.board["name"])
     results["calibration_steps"] = log.results["steps"]  # each step's lines as it finishes, for a stopped run
-    accepted = run_steps(session, rig, prompter, STEPS, opts, log=log)
+    # bringup first, as a full host calibrate does: wiring checks, and (with --fix) the board-file
+    # settings it recommends, such as more reads per step for noisy pots
+    accepted = run_steps(session, rig, prompter, (BRINGUP,) + STEPS, opts, log=log)
     log.finish()
     missing = [s for s in STEPS if s not in accepted]
     if missing:
@@ -139,7 +141,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
 
         raise UserError("the experiments need every calibration step; not accepted: %s" % ", ".join(missing))
     timings["calibration"] = time.monotonic() - t0
-    results["calibration"] = {s: accepted[s].lines for s in STEPS}
+    results["calibration"] = {s: accepted[s].lines for s in (BRINGUP,) + STEPS}
     results["calibration_plots"] = [p.name for s in STEPS for p in accepted[s].plots]
     pots = accepted["pots"].data
     results["pot_models"] = {pot: "%s order %d" % (pots[pot]["fit"].model, pots[pot]["fit"].order) for pot in ("pot1", "pot2")}

@@ -47,12 +47,15 @@ class ForceFit:
     def f0(self, d):
         """F0 at deformations d (mm), N; a table goes on straight past its end knots, as its export does."""
         d = np.asarray(d, dtype=float)
-        if self.kind != "pwl":
-            return np.polyval(self.coeffs_f, d)
-        kx, ky = self.knots_d, self.knots_f
-        lo = ky[0] + (d - kx[0]) * (ky[1] - ky[0]) / (kx[1] - kx[0])
-        hi = ky[-1] + (d - kx[-1]) * (ky[-1] - ky[-2]) / (kx[-1] - kx[-2])
-        return np.where(d < kx[0], lo, np.where(d > kx[-1], hi, np.interp(d, kx, ky)))
+        return table_value(d, self.knots_d, self.knots_f) if self.kind == "pwl" else np.polyval(self.coeffs_f, d)
+
+
+def table_value(x, kx, ky):
+    """A table at x, going on straight past its end knots (as host.calibration.fixed_export carries it on)."""
+    x = np.asarray(x, dtype=float)
+    lo = ky[0] + (x - kx[0]) * (ky[1] - ky[0]) / (kx[1] - kx[0])
+    hi = ky[-1] + (x - kx[-1]) * (ky[-1] - ky[-2]) / (kx[-1] - kx[-2])
+    return np.where(x < kx[0], lo, np.where(x > kx[-1], hi, np.interp(x, kx, ky)))
 
 
 def _design(d, s, order, friction):
@@ -94,13 +97,19 @@ def table_knots(d, spring, k):
     return np.asarray(fit_pwl(d[order], spring[order], k).coefficients["knots_x"])
 
 
-def cv_rms_table(d, f, s, kx, friction):
-    """Root mean square hold-out error of a table F0 on the knots kx."""
-    def residuals(model, test):
-        v, h = model
-        return f[test] - np.interp(d[test], kx, v) - h * s[test]
+def cv_rms_table(d, f, s, k, friction, h0):
+    """Root mean square hold-out error of a k-knot table F0 (on the polynomial's folds; the knots
+    are chosen again inside each fold, on the spring force with friction h0, so the score is not
+    flattered)."""
+    def fit(train):
+        kx = table_knots(d[train], f[train] - h0 * s[train], k)
+        return (kx,) + _solve_table(d[train], f[train], s[train], kx, friction)
 
-    return _cv_rms(len(d), lambda train: _solve_table(d[train], f[train], s[train], kx, friction), residuals)
+    def residuals(model, test):
+        kx, v, h = model
+        return f[test] - table_value(d[test], kx, v) - h * s[test]
+
+    return _cv_rms(len(d), fit, residuals)
 
 
 def fit_force(d_mm, force_n, s, order="auto", friction=True, tables=True):
@@ -148,7 +157,7 @@ def _try_table(fit, d, f, s, friction, poly_cv):
             values, h = _solve_table(d, f, s, kx, False)
         if np.all(np.diff(values) > 0):  # a knot span without data can fold the table: not a spring
             tables[k] = (kx, values, h)
-    fit.table_scores = {k: cv_rms_table(d, f, s, t[0], friction) for k, t in tables.items()}
+    fit.table_scores = {k: cv_rms_table(d, f, s, k, friction, fit.friction_n) for k in tables}
     if not fit.table_scores:
         return
     k = lowest_near_best(fit.table_scores, min(fit.table_scores))

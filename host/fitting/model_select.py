@@ -9,7 +9,9 @@ Rule: take the cheapest candidate whose RMS is within `tolerance` (10 %) of the 
 floor, because a better fit than the noise allows only learns the noise, and whose residuals
 have no local bias the noise cannot explain: over BIAS_BINS equal bins of the codes, each bin's
 mean residual, in units of its standard error (the bin's own scatter / sqrt(samples in it)),
-stays within BIAS_Z. The RMS alone hides a knee the curve cuts: on a pot with 5 LSB of noise a table 44 um
+stays within the Student-t quantile for that bin's sample count at a family-wise false-alarm
+rate of BIAS_ALPHA over all bins (Bonferroni): with 10-30 samples a bin's scatter is itself
+uncertain, and a fixed 3.5 refused good curves 8-25 % of the time on pure noise. The RMS alone hides a knee the curve cuts: on a pot with 5 LSB of noise a table 44 um
 off over a whole millimetre passed at 3 % above the floor, and that error went on into Df and
 the position loop. If none gets there, take the most accurate candidate within the parameter
 budget (default 12 numbers) or, among those within PLATEAU (2 %) of its RMS and without a local
@@ -25,7 +27,7 @@ BCM_DEGREES = (1, 2, 3)  # what firmware/bcm_fixed.bcm3 can evaluate (after degr
 DEFAULT_BUDGET = 12
 DEFAULT_TOLERANCE = 0.10
 BIAS_BINS = 60  # about 1 mm each over a 60 mm stroke
-BIAS_Z = 3.5  # the largest of 60 bin means of pure noise exceeds 3.5 standard errors ~3 % of the time
+BIAS_ALPHA = 0.03  # chance that pure noise fails the bias check somewhere in its BIAS_BINS bins
 PLATEAU = 0.02  # a candidate this close to the best RMS is as good
 BIAS_MIN_SAMPLES = 10  # bins with fewer samples are not judged
 
@@ -50,8 +52,10 @@ def candidates(budget=DEFAULT_BUDGET):
 def bias_z(result, x, y, bins=BIAS_BINS):
     """The largest |mean residual| of a bin of codes, in standard errors of that bin's mean (from
     the bin's own scatter: near a pot's flat end one code spans several times more travel, so
-    the noise in mm is larger there than the sweep's floor says)."""
+    the noise in mm is larger there than the sweep's floor says), as a fraction of the Student-t
+    quantile the noise alone reaches at BIAS_ALPHA over all bins: above 1, a local bias."""
     import numpy as np
+    from scipy.stats import t
 
     x = np.asarray(x, dtype=float)
     resid = np.asarray(y, dtype=float) - result(x)
@@ -67,7 +71,8 @@ def bias_z(result, x, y, bins=BIAS_BINS):
     var = np.maximum(squares[ok] - n * mean * mean, 0.0) / (n - 1)
     se = np.sqrt(var / n)
     se = np.maximum(se, 1e-12 + 1e-9 * np.max(np.abs(resid)))  # a noise-free sweep: any offset counts
-    return float(np.max(np.abs(mean) / se))
+    critical = t.ppf(1.0 - BIAS_ALPHA / (2.0 * np.count_nonzero(ok)), n - 1)
+    return float(np.max(np.abs(mean) / se / critical))
 
 
 def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLERANCE, n_excluded=0, progress=None):
@@ -84,11 +89,11 @@ def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLE
         fits.append(r)
         z = bias_z(r, x, y) if noise and math.isfinite(r.rms) else None
         tried.append({"model": model, "order": order, "n_params": r.n_params, "rms": r.rms, "bias_z": z})
-        if target is not None and r.rms <= target and r.monotone and z is not None and z <= BIAS_Z:
+        if target is not None and r.rms <= target and r.monotone and z is not None and z <= 1.0:
             reason = (
                 "%s order %d is the cheapest firmware model (%d parameters) within %.0f %% of the floor "
                 "(rms %.4g vs floor %.4g) with no local bias beyond the noise (largest 1/%d-range bin mean "
-                "%.1f standard errors)" % (model, order, r.n_params, 100 * tolerance, r.rms, noise, BIAS_BINS, z)
+                "%.2f of what noise reaches)" % (model, order, r.n_params, 100 * tolerance, r.rms, noise, BIAS_BINS, z)
             )
             return Selection(r, reason, tried)
     usable = [r for r in fits if r.monotone] or fits
@@ -97,7 +102,7 @@ def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLE
     # curve), the cheapest candidate within PLATEAU of the best and without a local bias: the
     # extra knots of the best one only follow noise
     z_of = {id(r): t["bias_z"] for r, t in zip(fits, tried)}
-    plateau = [r for r in usable if r.rms <= (1.0 + PLATEAU) * best.rms and (z_of[id(r)] or 0.0) <= BIAS_Z]
+    plateau = [r for r in usable if r.rms <= (1.0 + PLATEAU) * best.rms and (z_of[id(r)] or 0.0) <= 1.0]
     if plateau:
         best = plateau[0]
     if target is None:
@@ -114,4 +119,6 @@ def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLE
         best.rms,
         "" if not noise else ", %.2fx the floor" % (best.rms / noise),
     )
+    if (z_of[id(best)] or 0.0) > 1.0:
+        reason += "; it keeps a local bias beyond the noise (largest bin mean %.1fx what noise reaches)" % z_of[id(best)]
     return Selection(best, reason, tried)

@@ -3,8 +3,8 @@
 With both pots calibrated and no load, the block sweeps end to end (forward and backward at a
 low duty, so the small friction deformation has both signs and averages out). D1 and D2 are
 computed on the host by the firmware's own integer converters from the calibration file (no
-second copy of the arithmetic), Df = D1 - D2 is fitted by a polynomial in D1 and exported as the
-`df` section.
+second copy of the arithmetic), Df = D1 - D2 is fitted by a polynomial in D1 (or a free-knot
+table, df_table) and exported as the `df` section.
 
 The order is chosen with the fit (host/fitting/assembly.py).
 """
@@ -66,11 +66,17 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     ]
     if order != chosen:
         lines.append("Df: order %d needs more than 31 bits in the firmware's integers: order %d used" % (chosen, order))
-    table = df_table(x, df, min(scores.values())) if opts.df_order == "auto" else None
+    table = df_table(x, df) if opts.df_order == "auto" else None
+    if table is not None:
+        try:
+            table_section = force_table_section(table[0], table[1], domain, ("um", "um"), {}, df=True)
+        except UserError as exc:  # e.g. a D1 range the table's input offset cannot hold: keep the polynomial
+            lines.append("Df: a table would fit better but cannot be exported (%s): the polynomial is kept" % exc)
+            table = None
     if table is not None:
         kx, ky, table_scores = table
         resid = df - np.interp(x, kx, ky)
-        section = force_table_section(kx, ky, domain, ("um", "um"), {}, df=True)
+        section = table_section
         lines.append("Df: a %d-knot table predicts held-out samples better than any polynomial (cross-validated "
                      "rms by knots: %s): it follows the kinks the pot tables leave in D1 - D2" % (
                          len(kx), ", ".join("%d: %.1f um" % (n, 1000 * v) for n, v in table_scores.items())))

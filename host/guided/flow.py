@@ -193,6 +193,11 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         else:
             for name, section in outcome.sections.items():
                 update_section(path, name, section, board=board_name)
+            if step == "pots" and "stroke" not in outcome.sections and (read_calibration(path).get("stroke")):
+                # the old end stops were measured in the old curves' frame: limits from them could sit past a stop
+                update_section(path, "stroke", None, board=board_name)
+                prompter.say("  the end stops measured with the old pot curves are left out (the soft limits are the "
+                             "stroke parameters alone until a pots step measures them again)")
         prompter.say("  wrote %s to %s" % (", ".join(outcome.sections), path))
         if opts.flash:
             session.flash(path)

@@ -198,7 +198,8 @@ class Drive:
 def fit_drive(duty, spring_n, friction_n):
     """The stalled motor's force per duty, from the force step's points (at each one the motor
     holds the spring still, so its force is the spring's), and the duty that holds the spring at
-    the friction force: (h - offset) / slope."""
+    the friction force: (h - min(offset, 0)) / slope (a negative offset is force the screw's own
+    friction takes before the spring gets any; a positive one is not counted on)."""
     duty = np.abs(np.asarray(duty, dtype=float))
     force = np.abs(np.asarray(spring_n, dtype=float))
     if len(duty) < 3 or np.ptp(duty) <= 0:
@@ -238,6 +239,14 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
     fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
+    unexported = None
+    if fit.kind == "pwl":
+        try:
+            force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
+            force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
+        except UserError as exc:  # a table the firmware cannot hold: the polynomial it beat is kept
+            unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
+            fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, tables=False)
     drive = fit_drive(duty[taut], ft - fit.friction_n * st, fit.friction_n)
     plain = fit_force(dt, ft, st, fit.order_f, friction=False, tables=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
@@ -261,7 +270,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "friction force (position control adds it to break the block free)" % (
             1000 * drive.n_per_duty, drive.offset_n, drive.ff_duty) if drive.ff_duty else
         "force: no friction feed-forward for position control (%s)" % drive.why,
-    ]
+    ] + ([unexported] if unexported else [])
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
     stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}

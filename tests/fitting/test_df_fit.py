@@ -27,7 +27,7 @@ def _sweep(kinks, seed=4):
 def test_a_smooth_df_keeps_its_polynomial():
     x, df = _sweep([])
     _, scores = choose_order(x, df, "auto", floor=4)
-    assert df_table(x, df, min(scores.values())) is None
+    assert df_table(x, df) is None
 
 
 def test_a_df_that_no_polynomial_follows_gets_a_table():
@@ -37,7 +37,7 @@ def test_a_df_that_no_polynomial_follows_gets_a_table():
     reaches the noise (the target is 0.1 mm)."""
     x, df = np.loadtxt(DATA / "assembly-sweep-seed1002.csv", delimiter=",", unpack=True)
     order, scores = choose_order(x, df, "auto", floor=4)
-    table = df_table(x, df, min(scores.values()))
+    table = df_table(x, df)
     assert table is not None
     kx, ky, _ = table
     poly_peak = binned_peak(x, df - np.polyval(np.polyfit(x, df, min(order, 10)), x))

@@ -152,3 +152,18 @@ def test_an_interrupted_run_keeps_what_it_measured_and_says_where_it_stopped(old
     assert results["stopped"] == {"phase": fail_at, "why": "the board stopped answering"}
     report = log.report_path.read_text()
     assert "Stopped during %s" % fail_at in report and "## pots: accepted (pot1, pot2 written)" in report
+
+
+def test_new_pot_curves_without_end_stops_drop_the_old_ones(old_file, monkeypatch):
+    """A pots step that could not measure the end stops (a manual reference) writes curves in
+    the reference's own frame: end stops measured in the old curves' frame would put the soft
+    limits in the wrong place, so the file loses them (the backup keeps them)."""
+    doc = read_calibration(old_file)
+    doc["stroke"] = {"kind": "stroke", "fixed": [120, 59880]}
+    write_calibration(old_file, doc)
+    _steps(monkeypatch)
+    flow.run_steps(Session(), None, Quiet(), ("pots",), flow.Options(out=old_file))
+    now = read_calibration(old_file)
+    assert now.get("stroke") is None and now["pot1"]["pot_id"] == "pot1-new"
+    (backup,) = _backups(old_file)
+    assert json.loads(backup.read_text())["payload"]["stroke"]["fixed"] == [120, 59880]
