@@ -27,7 +27,7 @@ from firmware.poly_fixed import poly
 from array import array
 
 from firmware.portable import const, ptr16, ptr32, zeros
-from firmware.pwl_fixed import DF_PWL_OFFSET, FORCE_PWL_OFFSET, pwl
+from firmware.pwl_fixed import FORCE_PWL_OFFSET, df_table_input, pwl
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -35,6 +35,7 @@ except ImportError:  # CPython
     from firmware import portable as micropython
 
 STROKE_CLAMP_UM = const(65535)
+_DF_PWL_OFFSET = const(32768)  # pwl_fixed.DF_PWL_OFFSET, as a constant viper code can use (checked by a test)
 FORCE_CLAMP_MN = const(1000000)
 
 # Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
@@ -61,7 +62,7 @@ BASE1 = const(13)  # the tables hold D - BASE as uint16
 BASE2 = const(14)
 FF_DUTY = const(15)  # the duty that holds the spring at the friction force (0: no feed-forward)
 F_IN = const(16)  # added to d before F0 is evaluated: 0 for a polynomial, FORCE_PWL_OFFSET for a table
-DF_IN = const(17)  # added to D1 before Df is evaluated (per step, without tables): 0 or DF_PWL_OFFSET
+DF_IN = const(17)  # 1 when Df is a table: its input is (D1 >> 1) + DF_PWL_OFFSET (pwl_fixed.df_table_input)
 WORDS = const(18)
 TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
@@ -117,7 +118,7 @@ class Measurement:
         self.k_df = calibration.df
         df_table = getattr(calibration, "df_kind", "poly") == "pwl"
         self.df_eval = pwl if df_table else poly
-        self.df_in = DF_PWL_OFFSET if df_table else 0
+        self.df_table = df_table
         self.k_force = calibration.force
         self.k_force_inv = calibration.force_inverse
         # F0(d) and d(F0): polynomials, or tables (a spring pair whose preload ends inside the
@@ -133,7 +134,7 @@ class Measurement:
         st[FRIC] = fr[0] if fr is not None else 0
         st[FF_DUTY] = fr[1] if fr is not None and len(fr) > 1 else 0
         st[F_IN] = FORCE_PWL_OFFSET if table else 0
-        st[DF_IN] = self.df_in
+        st[DF_IN] = 1 if df_table else 0
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
         st[LAST_CODE] = (1 << self.adc_bits) - 1
@@ -199,7 +200,7 @@ class Measurement:
         """D1* from pot 1's curve value: clamped, less the Df correction when calibrated."""
         d1 = _clamp_um(raw_um)
         if self.k_df is not None:
-            d1 = _clamp_um(d1 - self.df_eval(d1 + self.df_in, self.k_df))
+            d1 = _clamp_um(d1 - self.df_eval(df_table_input(d1) if self.df_table else d1, self.k_df))
         return d1
 
     @property
@@ -266,7 +267,10 @@ class Measurement:
             elif d1 < -STROKE_CLAMP_UM:
                 d1 = -STROKE_CLAMP_UM
             if s[HAS_DF]:
-                d1 = d1 - int(self.df_eval(d1 + s[DF_IN], self.k_df))
+                x = d1
+                if s[DF_IN]:
+                    x = (d1 >> 1) + _DF_PWL_OFFSET
+                d1 = d1 - int(self.df_eval(x, self.k_df))
                 if d1 > STROKE_CLAMP_UM:
                     d1 = STROKE_CLAMP_UM
                 elif d1 < -STROKE_CLAMP_UM:

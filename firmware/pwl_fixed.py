@@ -28,9 +28,15 @@ except ImportError:  # CPython: the same decorator must still be valid, as an id
 # A force table (F0(d) or d(F0)) takes a signed input (d in um, F0 in mN) plus this, so that its
 # knot "codes" lie in 0..2**16 like an ADC table's, with input shift 0.
 FORCE_PWL_OFFSET = 32768
-# A Df table takes D1 in um plus this: D1 from -2.768 to 62.768 mm (the stroke centred on 30 mm
-# with room for a few mm of stretch in pot 2's frame) maps onto 0..2**16.
-DF_PWL_OFFSET = 2768
+# A Df table takes D1 in units of 2 um plus this (df_table_input): pot 1's mounting error can put
+# D1 anywhere from about -5 to 65 mm, more than 2**16 um, and a 2 um step of D1 moves Df by far
+# less than 1 um.
+DF_PWL_OFFSET = 32768
+
+
+def df_table_input(d1_um):
+    """The input of a Df table for D1 in um (the step inlines the same expression)."""
+    return (d1_um >> 1) + DF_PWL_OFFSET
 
 _B29 = const(536870912)  # sign fix of a knot value (see firmware/bcm_fixed.py)
 _M30 = const(1073741823)

@@ -241,7 +241,8 @@ def force_table_section(knots_in, knots_out, in_range, units, stats=None, df=Fal
     """A force section as a table (F0(d) or d(F0)), or with `df` the Df section as one: knots in
     natural units (mm, N), `units` as for poly_section."""
     try:
-        fixed = export_force_table(knots_in, knots_out, in_range, offset=DF_PWL_OFFSET if df else None, rising=not df)
+        fixed = export_force_table(knots_in, knots_out, in_range, offset=DF_PWL_OFFSET if df else None, rising=not df,
+                                   in_scale=500.0 if df else 1000.0)  # a Df table's input is D1 in 2 um units
     except ValueError as e:
         raise UserError("cannot export the %s table for the firmware: %s" % ("Df" if df else "force", e)) from None
     return {

@@ -18,7 +18,7 @@ from firmware.calibration import (
     stroke_constants,
 )
 from firmware.poly_fixed import poly
-from firmware.pwl_fixed import DF_PWL_OFFSET, FORCE_PWL_OFFSET, pwl
+from firmware.pwl_fixed import DF_PWL_OFFSET, FORCE_PWL_OFFSET, df_table_input, pwl
 
 POLY_NAMES = {"df": "Df_hat(D1), assembly error", "force": "F0(d), force of the spring deformation",
               "force_inverse": "d(F0), deformation for a force target"}
@@ -44,16 +44,19 @@ def _offset(name):
 
 
 def _poly_inputs(section, name):
-    """(k, inputs): the section's words and 1001 inputs over its range (a force table's inputs
-    are in the section's own units, without FORCE_PWL_OFFSET)."""
+    """(k, inputs): the section's words and 1001 inputs over its range (a table's inputs in the
+    section's own units: um or mN, without its offset)."""
     k = poly_constants(section, name)
-    lo, hi = (k[2] - _offset(name), k[1 + k[0]] - _offset(name)) if _is_table(section) else (k[2], k[3])
+    scale = 2 if name == "df" else 1  # a Df table's input is D1 in 2 um units
+    lo, hi = ((k[2] - _offset(name)) * scale, (k[1 + k[0]] - _offset(name)) * scale) if _is_table(section) else (k[2], k[3])
     return k, np.unique(np.linspace(lo, hi, 1001).round().astype(int))
 
 
 def evaluate(section, k, x, name="force"):
     """What the board computes for a polynomial or table section `name` at integer input x."""
-    return pwl(int(x) + _offset(name), k) if _is_table(section) else poly(int(x), k)
+    if not _is_table(section):
+        return poly(int(x), k)
+    return pwl(df_table_input(int(x)) if name == "df" else int(x) + FORCE_PWL_OFFSET, k)
 
 
 def describe_pot(section, name):

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware.pwl_fixed import DF_PWL_OFFSET, pwl
+from firmware.pwl_fixed import DF_PWL_OFFSET, df_table_input, pwl
 from host.calibration.file import force_table_section
 from host.fitting.assembly import binned_peak, choose_order, df_table
 from testkit.interpreters import on_cpython, on_micropython
@@ -56,6 +56,19 @@ def test_the_board_subtracts_a_df_table_as_the_host_computes_it(tmp_path):
     here = on_cpython("tests.firmware.app_cases", call)
     assert here == on_micropython("tests.firmware.app_cases", call)
     for d1_star, d1 in here:
-        expected = d1 - pwl(d1 + DF_PWL_OFFSET, section["fixed"])
+        expected = d1 - pwl(df_table_input(d1), section["fixed"])
         assert d1_star == max(-65535, min(65535, expected))
         assert abs((d1 - d1_star) / 1000.0 - np.interp(d1 / 1000.0, kx, ky)) < 0.002 or not -1000 <= d1 <= 61000
+
+
+def test_a_df_table_holds_the_whole_range_pot_1_can_read():
+    """Pot 1's mounting error puts D1 anywhere from about -5 to 65 mm (boards/sim.json's runs
+    4.6-63.7 mm): a Df table's input, D1 in 2 um units about DF_PWL_OFFSET, holds it all."""
+    from firmware import measurement
+
+    assert measurement._DF_PWL_OFFSET == DF_PWL_OFFSET  # the step's inlined copy
+    for lo, hi in ((4.6, 63.7), (-5.0, 65.0)):
+        kx = np.linspace(lo, hi, 8)
+        section = force_table_section(kx, 0.01 * kx, (lo, hi), ("um", "um"), df=True)
+        for d1 in (lo, (lo + hi) / 2, hi):
+            assert abs(pwl(df_table_input(int(d1 * 1000)), section["fixed"]) - 10 * d1) <= 1.5
