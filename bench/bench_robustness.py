@@ -188,6 +188,9 @@ def main(argv=None):
     ap.add_argument("--no-base", action="store_true", help="skip the boards/sim.json row")
     ap.add_argument("--out", default="out/robustness", help="where the boards and runs go")
     ap.add_argument("--doc", help="write the table and ranges to this Markdown file")
+    ap.add_argument("--reuse", action="store_true",
+                    help="keep the rows whose run already finished in --out (results.json there): an interrupted bench "
+                         "goes on where it stopped")
     a = ap.parse_args(argv)
     board = json.loads((REPO / "boards" / "sim.json").read_text())
     out = Path(a.out)
@@ -206,22 +209,32 @@ def main(argv=None):
             path = out / ("board-%d.json" % seed)
             path.write_text(json.dumps(b, indent=1))
             name = "seed %d" % seed
-        print("%s: running (about 5 minutes)..." % name, file=sys.stderr, flush=True)
-        results, wall, code, last = run_one(path, out / ("run-%s" % (seed if seed is not None else "base")))
+        run_dir = out / ("run-%s" % (seed if seed is not None else "base"))
+        done = run_dir / "results.json"
+        results = json.loads(done.read_text()) if a.reuse and done.exists() else {}
+        if a.reuse and ((run_dir / "row.json").exists() or "timings" in results or "stopped" in results):  # it ended
+            kept = json.loads((run_dir / "row.json").read_text()) if (run_dir / "row.json").exists() else {}
+            wall, code, last = kept.get("wall_s"), kept.get("exit"), kept.get("last_line", "")
+            print("%s: kept from %s" % (name, run_dir), file=sys.stderr, flush=True)
+        else:
+            print("%s: running (about 5 minutes)..." % name, file=sys.stderr, flush=True)
+            results, wall, code, last = run_one(path, run_dir)
+            (run_dir / "row.json").write_text(json.dumps({"wall_s": wall, "exit": code, "last_line": last}))
         verdict = judge(results)
         row = {"name": name, "seed": seed, "wall_s": wall, "exit": code, "last_line": last,
                "verdict": verdict, "figures": figures(results), "actuator": describe(actuator, board["supply_volts"], redraws)}
         fixed = sorted(out.glob("run-%s/board-*.json" % (seed if seed is not None else "base")))  # a shipped file's fix
         row["actuator"]["oversample"] = json.loads((fixed[0] if fixed else path).read_text()).get("oversample")
         rows.append(row)
-        print("%s: %s %s (%.0f s, exit %d)" % (name, verdict, row["figures"], wall, code), flush=True)
+        print("%s: %s %s (%s s, exit %s)" % (name, verdict, row["figures"], "-" if wall is None else "%.0f" % wall, code), flush=True)
     (out / "summary.json").write_text(json.dumps(rows, indent=1))
     targets = ("Df", "displacement", "no blocking", "force steps")
     lines = ["| actuator | " + " | ".join(targets) + " | figures | wall s |", "| --- |" + " --- |" * (len(targets) + 2)]
     for r in rows:
         cells = [{True: "met", False: "**missed**", None: "not run"}[r["verdict"][t]] for t in targets]
         figs = "; ".join("%s %s" % kv for kv in r["figures"].items())
-        lines.append("| %s | %s | %s | %.0f |" % (r["name"], " | ".join(cells), figs, r["wall_s"]))
+        wall = "-" if r["wall_s"] is None else "%.0f" % r["wall_s"]
+        lines.append("| %s | %s | %s | %s |" % (r["name"], " | ".join(cells), figs, wall))
     lines += ["", "| actuator | friction N | k1 N/mm | k2 N/mm^2 | preload N | push N | spring at 1.8 mm N | pot noise LSB | "
               "pot 2 mount error at 0 / 60 mm | reference | redraws | oversample after bringup |", "| --- |" + " --- |" * 11]
     for r in rows:
