@@ -1,9 +1,10 @@
 """What lets one firmware source run under MicroPython and, for tests, under CPython.
 
 `const` and `ticks_us` come from MicroPython where they exist; `ptr32` stands in for viper's
-cast under CPython; `release` lets a board's heap take back a module only the boot needs. The code emitters are NOT run-time functions:
-MicroPython's compiler selects them only for the literal decorators `@micropython.native` and
-`@micropython.viper`. A module that wants one therefore writes
+cast under CPython; `release` lets a board's heap take back a module only the boot needs. The
+code emitters are NOT run-time functions: MicroPython's compiler selects them only for the
+literal decorators `@micropython.native` and `@micropython.viper`. A module that wants one
+therefore writes
 
     try:
         import micropython
