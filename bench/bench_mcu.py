@@ -51,7 +51,8 @@ from array import array
 
 gc.collect()
 ALLOC0 = gc.mem_alloc()  # before any firmware module is imported
-import firmware.board_main, firmware.app, firmware.link, firmware.calibration  # noqa: E401  (what a board imports at boot)
+import firmware.board_main, firmware.app, firmware.link  # noqa: E401  (what a board imports at boot; the boot itself
+# imports firmware.calibration and firmware.board_config, and lets them go when it is done)
 gc.collect()
 IMPORTS = gc.mem_alloc() - ALLOC0
 CODES = %(codes)r
@@ -357,8 +358,9 @@ def report(cpu, results, heap):
                 r["label"], mode, m["step"], lo, hi, " | ".join("-" if v in (None, 0) else "%.0f" % v for v in cells)))
     lines.append("")
     total, bare = heap
-    lines.append("Heap %.0f KiB; a bare interpreter holds %.1f KiB. Firmware: imports (firmware.app, link,"
-                 " calibration as .mpy) + boot objects (App, Link, calibration, tables). Free after boot ="
+    lines.append("Heap %.0f KiB; a bare interpreter holds %.1f KiB. Firmware: imports (firmware.board_main, app,"
+                 " link as .mpy) + boot objects (App, Link, calibration, tables: what the boot leaves in the heap;"
+                 " the calibration and board-file modules it imports and lets go are in neither). Free after boot ="
                  " heap - bare - imports - boot objects. The largest free block is measured with the"
                  " bench's own script also in the heap, so a board has at least that." % (total / 1024, bare / 1024))
     lines.append("")

@@ -12,10 +12,10 @@ import sys
 from array import array
 
 from firmware import hal
-from firmware.board_config import load_board
 from firmware.controller import EF, FORCE, IDLE, OPEN_LOOP, PARKED, POSITION, Controller
 from firmware.measurement import STROKE_CLAMP_UM, Measurement, board_problem
 from firmware.motor import Motor
+from firmware.portable import release
 from firmware.pi_control import DUTY_MAX
 from firmware.protocol import MODES, PARAMS, PROTOCOL_VERSION, VERSION
 from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
@@ -57,8 +57,16 @@ def _interpreter():
     return "%s %d.%d.%d" % (impl.name, v[0], v[1], v[2]), getattr(impl, "_mpy", None)
 
 
+def _load_board(path):
+    """The checked board file (firmware.board_config, imported for the boot only: see release)."""
+    from firmware.board_config import load_board
+
+    return load_board(path)
+
+
 def _load_calibration(path):
-    """(calibration, None) or (None, reason)."""
+    """(calibration, None) or (None, reason). firmware.calibration is imported for this only and
+    let go after the boot (release): the Calibration it returns is data."""
     if path is None:
         return None, "no calibration file configured"
     from firmware.calibration import CalibrationError, load_calibration
@@ -79,7 +87,7 @@ def _load_calibration(path):
 
 class App:
     def __init__(self, board_path, calibration_path, machine=None, ring_records=128, exit_path=None, params_path=None):
-        self.board = load_board(board_path)
+        self.board = _load_board(board_path)
         self.machine = hal.get_machine(self.board, machine)
         # The motor first, so that whatever fails later at boot, the bridge is already off.
         self.motor = Motor(self.machine, self.board)
@@ -116,6 +124,9 @@ class App:
         self.exit_path = exit_path
         self.last_exit = _read_exit(exit_path)  # why the previous run() ended (this boot's or the last)
         self.interpreter, self.mpy = _interpreter()
+        # the modules only the boot needed: on a board their code goes back to the heap
+        release("firmware.board_config")
+        release("firmware.calibration")
 
     def set_calibration(self, cal):
         """Use a loaded Calibration (or None for raw readings only). Goes idle first."""

@@ -231,27 +231,32 @@ def stroke_constants(section, name=STROKE_SECTION):
 class Calibration:
     """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None
     (df_kind, force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
-    as [low_um, high_um] or None."""
+    as [low_um, high_um] or None. Data only, filled by `checked`: the App keeps it after the boot
+    has let this module go (portable.release), and a method would keep the whole module alive."""
 
-    def __init__(self, body, crc):
-        for name in POT_SECTIONS:
-            if name not in body:
-                raise CalibrationError("section %s missing (calibrate that pot first)" % name)
-        self.pot1 = pot_constants(body["pot1"], "pot1")
-        self.pot2 = pot_constants(body["pot2"], "pot2")
-        self.df = poly_constants(body.get("df"), "df")
-        self.force = poly_constants(body.get("force"), "force")
-        self.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
-        self.df_kind = section_kind(body.get("df"))
-        self.force_kind = section_kind(body.get("force"))
-        self.force_inverse_kind = section_kind(body.get("force_inverse"))
-        self.friction = friction_constants(body.get(FRICTION_SECTION))
-        self.stroke = stroke_constants(body.get(STROKE_SECTION))
-        self.crc = crc
-        self.board = body.get("board")
-        self.date = body.get("date")
-        self.pots = body.get("pots")
-        self.version = body["schema"]
+
+def checked(body, crc):
+    """The Calibration of a payload, every section checked."""
+    for name in POT_SECTIONS:
+        if name not in body:
+            raise CalibrationError("section %s missing (calibrate that pot first)" % name)
+    cal = Calibration()
+    cal.pot1 = pot_constants(body["pot1"], "pot1")
+    cal.pot2 = pot_constants(body["pot2"], "pot2")
+    cal.df = poly_constants(body.get("df"), "df")
+    cal.force = poly_constants(body.get("force"), "force")
+    cal.force_inverse = poly_constants(body.get("force_inverse"), "force_inverse")
+    cal.df_kind = section_kind(body.get("df"))
+    cal.force_kind = section_kind(body.get("force"))
+    cal.force_inverse_kind = section_kind(body.get("force_inverse"))
+    cal.friction = friction_constants(body.get(FRICTION_SECTION))
+    cal.stroke = stroke_constants(body.get(STROKE_SECTION))
+    cal.crc = crc
+    cal.board = body.get("board")
+    cal.date = body.get("date")
+    cal.pots = body.get("pots")
+    cal.version = body["schema"]
+    return cal
 
 
 def load_calibration(path):
@@ -272,7 +277,7 @@ def load_calibration(path):
     except Exception:  # UnicodeError on CPython, ValueError/UnicodeError on MicroPython
         raise CalibrationError("not a text file")
     body, crc = parse_document(text)
-    return Calibration(body, crc)
+    return checked(body, crc)
 
 
 def convert(kind, code, k):

@@ -1,9 +1,10 @@
 """What lets one firmware source run under MicroPython and, for tests, under CPython.
 
 `const` and `ticks_us` come from MicroPython where they exist; `ptr32` stands in for viper's
-cast under CPython. The code emitters are NOT run-time functions:
-MicroPython's compiler selects them only for the literal decorators `@micropython.native` and
-`@micropython.viper`. A module that wants one therefore writes
+cast under CPython; `release` lets a board's heap take back a module only the boot needs. The
+code emitters are NOT run-time functions: MicroPython's compiler selects them only for the
+literal decorators `@micropython.native` and `@micropython.viper`. A module that wants one
+therefore writes
 
     try:
         import micropython
@@ -16,6 +17,7 @@ MicroPython's compiler selects them only for the literal decorators `@micropytho
 and under CPython this module stands in for `micropython` with identity decorators.
 """
 
+import sys
 from array import array
 
 try:
@@ -68,3 +70,22 @@ def native(func):
 def viper(func):
     """CPython stand-in for @micropython.viper (never reached on MicroPython, see above)."""
     return func
+
+
+def release(name):
+    """Let the garbage collector take back module `name` (e.g. "firmware.calibration"), which only
+    the boot needed: MicroPython keeps a module's code in the heap, so a board drops it from
+    sys.modules and from its package once it is done with it. The caller keeps nothing of it but
+    data (no function, no instance of a class with methods: either would keep the module's
+    globals, and so all its code, alive). A later import loads it again. Under CPython (the host
+    and the tests) nothing is released: host code holds these modules, and a second copy would
+    bring a second CalibrationError class."""
+    if sys.implementation.name != "micropython":
+        return
+    sys.modules.pop(name, None)
+    dot = name.rfind(".")
+    outer = sys.modules.get(name[:dot])
+    try:
+        delattr(outer, name[dot + 1 :])
+    except (AttributeError, KeyError):  # not imported, or already released (KeyError: MicroPython)
+        pass

@@ -87,6 +87,51 @@ def test_compiled_x64_step_allocates_nothing_under_heap_lock(tmp_path, data_path
         assert there["duty"] == here["duty"] and there["pots"] == here["pots"], (pots, mode, here, there)
 
 
+BOOT_RELEASE = """
+import gc, json, sys
+from testkit.exact import emit
+from testkit.replay import ReplayMachine, load
+from firmware.app import App
+
+data = load(%r)
+board = json.load(open("boards/sim.json"))
+
+
+def boot():
+    machine = ReplayMachine({pin: data["codes"][name] for name, pin in board["adc_pins"].items() if name in data["codes"]})
+    gc.collect()
+    before = gc.mem_alloc()
+    app = App("boards/sim.json", data["calibrations"]["model"], machine=machine)
+    gc.collect()
+    return app, gc.mem_alloc() - before
+
+
+app, _ = boot()  # interns the modules' names, which stay (as on a board)
+del app
+app, released = boot()
+import firmware
+gone = [name for name in ("calibration", "board_config") if "firmware." + name not in sys.modules and not hasattr(firmware, name)]
+crc = app.status()["calibration_crc"]
+app.set_mode("position")
+del app
+import firmware.calibration as held  # now the boot cannot free the module: its code stays held here
+app, kept = boot()
+emit({"gone": gone, "crc": crc, "leaked": released - kept})
+"""
+
+
+def test_boot_lets_go_of_the_modules_only_the_boot_needs(tmp_path, data_paths):
+    """On MicroPython (x64 .mpy files) the boot drops firmware.calibration and
+    firmware.board_config (portable.release), and nothing the App keeps holds on to their code:
+    a boot costs the heap no more than one whose calibration module the test itself holds."""
+    compile_all(tmp_path, "x64")
+    proc = run_micropython(PREFER_EXTRA_PATHS + BOOT_RELEASE % data_paths["bcm3"], extra_paths=[tmp_path, REPO], timeout=300)
+    out = exact.result(proc.stdout)
+    assert out["gone"] == ["calibration", "board_config"], out
+    assert out["crc"] is not None, out
+    assert abs(out["leaked"]) < 256, out  # the calibration module's code alone is several KiB
+
+
 BOARD_MARCHES = sorted({json.loads(p.read_text())["mpy_march"] for p in (REPO / "boards").glob("*.json")} - {"x64"})
 
 
