@@ -1,4 +1,6 @@
 import os
+import shutil
+import tempfile
 
 import pytest
 
@@ -6,6 +8,24 @@ from testkit.interpreters import REPO, run_micropython
 
 SHARED = REPO.parent / "shared"
 REALDATA = SHARED / "realdata"
+
+
+def pytest_configure(config):
+    """One mpy-cross cache for the whole run (host/link/flashing.py: $LSEA_MPY_CACHE), made by the
+    controlling process before it starts the xdist workers, which inherit it, as do the `host
+    flash` processes the tests start: every flash of the run compiles the same firmware, keyed by
+    compiler, arguments and source bytes, so each module is compiled once, not once per flash."""
+    if hasattr(config, "workerinput") or os.environ.get("LSEA_MPY_CACHE"):
+        return
+    config._lsea_mpy_cache = tempfile.mkdtemp(prefix="lsea-mpy-cache-")
+    os.environ["LSEA_MPY_CACHE"] = config._lsea_mpy_cache
+
+
+def pytest_unconfigure(config):
+    made = getattr(config, "_lsea_mpy_cache", None)
+    if made:
+        shutil.rmtree(made, ignore_errors=True)
+        os.environ.pop("LSEA_MPY_CACHE", None)
 
 
 def shared_dir(path, what):

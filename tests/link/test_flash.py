@@ -105,7 +105,14 @@ def test_force_on_the_flashed_board_pulls_the_hooked_gauge_to_the_target(flashed
             client.call("stop")
 
 
-KILLS = 20  # kill instants, spread evenly over a measured flash
+# Kill instants, keyed to the flash's printed progress lines: (line, fractions of the time from
+# that line to the next in a measured flash), so that every step is hit however long a busy
+# machine makes the ones before it. Nothing on the board changes while compiling; the copy
+# (mpremote holds the raw REPL, files half-written into _new/) and the swap (mpremote's start,
+# then the renames on the board) get three kills each, the read-back and the reset one each.
+KILLS = (("compiling", (0.5,)), ("copying", (0.2, 0.5, 0.8)), ("installing", (0.3, 0.65, 0.9)),
+         ("verifying", (0.5,)), ("resetting", (0.5,)))
+STEPS = [line for line, _ in KILLS] + ["flashed:"]
 
 
 def expected_outcome(printed):
@@ -175,14 +182,14 @@ def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, cali
     paths = {crc: path for path, crc in calibrations.values()}
     current = calibrations["a"][1]  # what `flashed` installed
 
-    # One whole flash, timed from its first progress line to its exit: the kills spread over it.
+    # One whole flash, each progress line timed: the kills are spread over each step.
     proc = start_flash(board.path, next(path for crc, path in paths.items() if crc != current))
     at = {}
     for line in proc.stdout:
         at[line.split()[0]] = time.monotonic()
-    assert proc.wait() == 0 and "flashed:" in at, at
+    assert proc.wait() == 0 and set(STEPS) <= set(at), at
     proc.stdout.close()
-    duration = time.monotonic() - at["compiling"]
+    duration = at["flashed:"] - at["compiling"]
     copy_s = at["installing"] - at["copying"]
     current = next(crc for crc in paths if crc != current)
 
@@ -207,7 +214,8 @@ def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, cali
         current = crc
         return (round(kill_after, 2), phase(printed) if killed else "done", got)
 
-    outcomes = [kill_and_check(duration * (k + 0.5) / KILLS) for k in range(KILLS)]
+    outcomes = [kill_and_check(f * (at[STEPS[i + 1]] - at[step]), step)
+                for i, (step, fractions) in enumerate(KILLS) for f in fractions]
     # A busier or idler machine stretches or shrinks later flashes against the one measured: make
     # sure the spread still covered a kill mid-copy and one after the swap, keyed to the lines.
     if "copying" not in {o[1] for o in outcomes}:
