@@ -52,7 +52,7 @@ PARAMS = (
     ("kp_force", 2560, 0, GAIN_MAX, "duty/256 per um"),  # per um of deformation error
     ("ki_force", 8192, 0, GAIN_MAX, "duty/256 per um per step"),
     ("out_limit", 8000, 0, DUTY_MAX, "duty"),  # |PI output| limit (duty 10000 = 100 %)
-    ("int_limit", 6000, 0, DUTY_MAX, "duty"),  # |integral| limit
+    ("int_limit", 8000, 0, DUTY_MAX, "duty"),  # |integral| limit: out_limit, so a held force or position can use all of the duty the output may
     ("slew", 500, 0, DUTY_MAX, "duty per step"),  # max duty change per step (0 = unlimited)
     ("host_timeout_ms", 1000, 0, 600000, "ms"),  # host silence that stops the motor (0 = off)
     ("rail_reads", 4, 1, 1000, "reads"),  # consecutive reads at a rail that make a fault
