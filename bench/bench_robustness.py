@@ -207,7 +207,6 @@ def main(argv=None):
             b = dict(board, name="sim", actuator=actuator)
             b.pop("sources", None)
             path = out / ("board-%d.json" % seed)
-            path.write_text(json.dumps(b, indent=1))
             name = "seed %d" % seed
         run_dir = out / ("run-%s" % (seed if seed is not None else "base"))
         done = run_dir / "results.json"
@@ -217,14 +216,18 @@ def main(argv=None):
             wall, code, last = kept.get("wall_s"), kept.get("exit"), kept.get("last_line", "")
             print("%s: kept from %s" % (name, run_dir), file=sys.stderr, flush=True)
         else:
+            if seed is not None:  # bringup's --fix edits this file: write it only for a run
+                path.write_text(json.dumps(b, indent=1))
             print("%s: running (about 5 minutes)..." % name, file=sys.stderr, flush=True)
             results, wall, code, last = run_one(path, run_dir)
-            (run_dir / "row.json").write_text(json.dumps({"wall_s": wall, "exit": code, "last_line": last}))
+            fixed = sorted(run_dir.glob("board-*.json"))  # bringup's fix of a shipped board file lands here
+            kept = {"wall_s": wall, "exit": code, "last_line": last,
+                    "oversample": json.loads((fixed[0] if fixed else path).read_text()).get("oversample")}
+            (run_dir / "row.json").write_text(json.dumps(kept))
         verdict = judge(results)
         row = {"name": name, "seed": seed, "wall_s": wall, "exit": code, "last_line": last,
                "verdict": verdict, "figures": figures(results), "actuator": describe(actuator, board["supply_volts"], redraws)}
-        fixed = sorted(out.glob("run-%s/board-*.json" % (seed if seed is not None else "base")))  # a shipped file's fix
-        row["actuator"]["oversample"] = json.loads((fixed[0] if fixed else path).read_text()).get("oversample")
+        row["actuator"]["oversample"] = kept.get("oversample")
         rows.append(row)
         print("%s: %s %s (%s s, exit %s)" % (name, verdict, row["figures"], "-" if wall is None else "%.0f" % wall, code), flush=True)
     (out / "summary.json").write_text(json.dumps(rows, indent=1))
