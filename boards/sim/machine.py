@@ -39,7 +39,11 @@ try:
     _ticks_us = time.ticks_us
     _ticks_diff = time.ticks_diff
     _ticks_add = time.ticks_add
+    _sleep_us = time.sleep_us
 except AttributeError:  # CPython
+
+    def _sleep_us(us):
+        time.sleep(us / 1000000)
 
     def _ticks_us():
         return int(time.perf_counter() * 1000000)
@@ -259,7 +263,11 @@ def run_ticks(n):
 
 
 def idle():
-    """Run every tick that is due by the wall clock; return how many ran."""
+    """Run every tick that is due by the wall clock; return how many ran. When none is due,
+    sleep until the next one is (at most one period) instead of returning at once: a real board's
+    main loop spins between timer interrupts, but a virtual board that spun would hold a whole
+    core of the host computer (the suite's and the user's), and its input waits at most one
+    period for the next main-loop visit, as on a board busy in its step."""
     global _next_due, skipped_ticks
     bench_rig.poll(_world)  # what a person mounted on the rig (rig.json), outside the step
     t = _timer
@@ -268,6 +276,7 @@ def idle():
     now = _ticks_us()
     late = _ticks_diff(now, _next_due)
     if late < 0:
+        _sleep_us(min(-late, t.period_us))
         return 0
     n = late // t.period_us + 1
     if n > _max_catchup:
