@@ -4,7 +4,7 @@
     .venv/bin/python bench/suite_soak.py --reps 3 --busy 2        # two CPU-bound processes meanwhile
     .venv/bin/python bench/suite_soak.py --reps 5 -- tests/sim/test_machine.py   # a subset
 
-Each repetition is `python -m pytest -q -n 2 --dist loadfile -rA --junitxml=OUT/rep-K.xml` (the README's test
+Each repetition is `python -m pytest -q -n 3 --dist loadfile -rA --junitxml=OUT/rep-K.xml` (the README's test
 command; `--workers 0` runs without pytest-xdist; plus anything after `--`), run from the repository; per-test outcomes come from the junit XML. `--busy N` starts N
 busy-looping processes before the first repetition and kills them after the last, whatever
 happens (normal end, an exception, Ctrl-C, SIGTERM; each also exits by itself once this script
@@ -88,7 +88,7 @@ def _as_from_a_terminal():
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
-def run_rep(k, out_dir, pytest_args, workers=2):
+def run_rep(k, out_dir, pytest_args, workers=3):
     xml = out_dir / ("rep-%d.xml" % k)
     log = out_dir / ("rep-%d.log" % k)
     load_before = loadavg()
@@ -145,7 +145,7 @@ def main(argv=None):
     ap.add_argument("--busy", type=int, default=0, metavar="N",
                     help="keep N CPU-bound processes running for the whole soak (default 0: the machine as it is)")
     ap.add_argument("--out", default=None, help="directory for the junit XML, logs and summary.md")
-    ap.add_argument("--workers", type=int, default=2, help="pytest-xdist workers (-n), as the README's test command; 0: none")
+    ap.add_argument("--workers", type=int, default=3, help="pytest-xdist workers (-n), as the README's test command; 0: none")
     ap.add_argument("pytest_args", nargs="*", help="after --: passed to pytest (e.g. a subset of tests)")
     args = ap.parse_args(argv)
     mode = "busy (%d CPU-bound processes)" % args.busy if args.busy else "as the machine is (no added load)"

@@ -2,4 +2,4 @@
 unix port and emulated chips), sim/ (the simulated actuator, and the firmware on it), fitting/,
 calibration/, link/ (frames, the client, flashing, the virtual board), guided/ (the guided
 calibration, the experiments, tuning) and cli/ (the commands). Shared support is the testkit
-package; `pytest -q -n 2 --dist loadfile` from the repository root runs it all."""
+package; `pytest -q -n 3 --dist loadfile` from the repository root runs it all."""

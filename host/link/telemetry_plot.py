@@ -2,7 +2,7 @@
 duty and targets against the board's time.
 
 `TelemetryFigure` lays the four panels out on a matplotlib Figure once and `show()` replaces the
-lines' data, so the live view (host/link/live_view.py) redraws the same figure ten times a second
+lines' data, so the live view (host/link/live_view.py) redraws the same figure fifteen times a second
 and `plot()` draws a whole run once into a PNG. Neither touches pyplot or matplotlib's backend:
 `plot()` draws on a Figure of its own and writes the file through it.
 
