@@ -132,10 +132,13 @@ def phase(printed):
     return steps[-1] if steps else "starting"
 
 
-def start_flash(port, calibration):
+def start_flash(port, calibration, tmp_dir=None):
+    """`host flash` in its own process group; `tmp_dir`: its TMPDIR (a SIGKILLed flash cannot
+    remove its staging directory, so the kills leave theirs in the test's tmp_path, not /tmp)."""
+    env = dict(os.environ, TMPDIR=str(tmp_dir)) if tmp_dir else None
     return subprocess.Popen(
         [sys.executable, "-u", "-m", "host", "flash", "--port", port, "--calibration", str(calibration)],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True,
+        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True, env=env,
     )
 
 
@@ -151,13 +154,13 @@ def group_running(pgid):
     return False
 
 
-def flash_and_kill(port, calibration, kill_after, marker=""):
+def flash_and_kill(port, calibration, kill_after, marker="", tmp_dir=None):
     """Run `host flash` and SIGKILL its process group (the host process and its mpremote,
     mid-flight) `kill_after` seconds after it printed the progress line starting with `marker`
     (default: its first, "compiling": the flash proper starts there, after the interpreter's
     start-up). Returns every line it printed before it died (read from the pipe afterwards) and
     whether the kill landed before the flash ended."""
-    proc = start_flash(port, calibration)
+    proc = start_flash(port, calibration, tmp_dir)
     printed = []
     for line in proc.stdout:
         printed.append(line)
@@ -176,7 +179,7 @@ def flash_and_kill(port, calibration, kill_after, marker=""):
     return printed, killed
 
 
-def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, calibrations):
+def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, calibrations, tmp_path):
     board, _ = flashed
     files = {crc: path.read_bytes() for path, crc in calibrations.values()}
     paths = {crc: path for path, crc in calibrations.values()}
@@ -196,7 +199,7 @@ def test_flash_killed_at_many_points_leaves_old_or_new_calibration(flashed, cali
     def kill_and_check(kill_after, marker=""):
         nonlocal current
         new_crc = next(crc for crc in paths if crc != current)
-        printed, killed = flash_and_kill(board.path, paths[new_crc], kill_after, marker)
+        printed, killed = flash_and_kill(board.path, paths[new_crc], kill_after, marker, tmp_path)
         expect = expected_outcome(printed) if killed else "new"
         if expect == "either":
             time.sleep(0.3)  # a swap already received by the board runs to its end
