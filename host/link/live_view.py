@@ -70,8 +70,9 @@ class LiveView:
         self.redraws = 0
         self.full_redraws = 0
         self.skipped = 0
-        self.drawing_s = 0.0  # wall time spent in redraw(), and the longest one
+        self.drawing_s = 0.0  # wall time spent drawing, and the longest draw
         self.longest_s = 0.0
+        self._drawn_at = None  # board seconds of the newest record on the picture
         self.closed = False
         self._next = self.period
         self._chunks = []  # (board seconds, records) as they came, trimmed to the window
@@ -132,6 +133,16 @@ class LiveView:
         self.skipped += max(0, behind)
         self._next += (max(0, behind) + 1) * self.period
         self.redraws += 1
+        self._draw()
+
+    def finish(self):
+        """Draw the end of the run once more if records came after the last redraw (outside the
+        schedule, not counted in `redraws`), so the picture left on screen shows the whole run."""
+        if self._chunks and self._drawn_at != self.clock.seconds:
+            self._draw()
+
+    def _draw(self):
+        self._drawn_at = self.clock.seconds
         started = time.perf_counter()
         canvas = self.figure.canvas
         if self._chunks:
@@ -197,6 +208,8 @@ def _draw(rows_queue, report, stop, raw, title, canvas, close_stops):
             view.redraw()
         else:
             view.idle()
+    if not view.closed:
+        view.finish()
     newest = {line.get_label(): float(line.get_ydata()[-1]) for line, _ in view.plot.lines if len(line.get_ydata())}
     report.put(("done", {"redraws": view.redraws, "skipped": view.skipped, "full_redraws": view.full_redraws,
                          "board_seconds": view.clock.seconds, "newest": newest, "drawing_s": view.drawing_s,

@@ -56,9 +56,9 @@ def test_the_live_view_redraws_on_its_board_time_schedule_and_no_frame_is_lost(c
     scheduled = math.floor(view["board_seconds"] * REFRESH_HZ)
     assert scheduled - 1 <= view["redraws"] + view["skipped"] <= scheduled
     # how many of them were drawn rather than skipped depends on the machine's load (measured
-    # figures in docs/link.md), so only that drawing went on to the end is asserted
-    assert view["redraws"] >= 2, view
-    # what the last redraw showed is the newest data: D2 near the 40 mm target
+    # figures in docs/link.md, bench/bench_live_view.py), so only that one was is asserted
+    assert view["redraws"] >= 1, view
+    # the picture left at the end shows the end of the run: D2 near the 40 mm target
     assert abs(view["newest"]["D2 block"] - 40.0) < 0.3, view["newest"]
 
 
@@ -100,8 +100,12 @@ def test_a_real_window_is_drawn_live_and_no_frame_is_lost(calibration, tmp_path,
     assert result.reached
     assert view is not None and not view.get("headless"), view
     assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
-    assert set(np.diff(load(out)["t_us"])) == {1000}
-    assert view["redraws"] >= 2, view
+    data = load(out)
+    assert set(np.diff(data["t_us"])) == {1000}
+    # drawn on its schedule (how many drawn rather than skipped depends on the load: the first
+    # draw of a fresh window took 1.4 s once in a quiet soak), and the end of the run on screen
+    scheduled = math.floor(view["board_seconds"] * REFRESH_HZ)
+    assert view["redraws"] >= 1 and scheduled - 1 <= view["redraws"] + view["skipped"] <= scheduled, view
     assert abs(view["newest"]["D2 block"] - 20.0) < 0.3, view["newest"]
 
 
@@ -145,6 +149,16 @@ def test_between_axis_changes_only_the_lines_are_drawn():
     assert view.now_text.get_text() == "board time 30.0 s"
     feed(0.3, d1_um=30000, d2_um=-5000, duty=2000)  # the block's position leaves its range again
     assert view.full_redraws == 3, view.full_redraws
+    # the end of a run that came between two redraws is drawn once more, outside the schedule
+    drawn = view.redraws
+    rows = np.zeros((20, len(P.FIELDS)), dtype=np.int64)
+    rows[:, P.FIELDS.index("d2_um")] = 7000
+    rows[:, t_col] = t_us + 1000 * np.arange(1, 21)
+    view.add(rows)
+    view.finish()
+    assert view.redraws == drawn
+    d2 = next(line for line, _ in view.plot.lines if line.get_label() == "D2 block")
+    assert d2.get_xdata()[-1] == 0.0 and d2.get_ydata()[-1] == 7.0
 
 
 def test_no_window_without_a_display(headless):
