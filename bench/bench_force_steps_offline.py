@@ -1,0 +1,179 @@
+"""Offline force steps against the gauge on simulated actuators (lsea-kit issue 11).
+
+What it runs: tests/sim/firmware_cases.py case_force_steps_sim -- the real firmware App on the
+simulated actuator, advanced with run_ticks on CPython (no real time, deterministic) -- with the
+bench's steps: 5, 10, 15, 10, 5 N on each side of the gauge ("high" and "low"), after a 0.5 N
+preload, each step settled 1.5 s (1500 ticks) then measured 0.5 s (500 ticks).
+
+Which actuators: for each SEED, the board file RUNS/board-SEED.json and the calibration the
+robustness run identified for it, RUNS/run-SEED/calibration.json; with seed "sim", the
+repository's boards/sim.json and RUNS/run-base/calibration.json (skipped if that file is missing).
+With --exact the identified calibration is replaced by an exact model calibration of that board
+(testkit/model.py write_model_calibration): F0 tabled against the deformation the firmware
+measures (the pots' mount errors and the Df travel included, the block where the gauge holds it
+for that force) and the friction section equal to the board's true coulomb_n.
+
+Call (from the repository root, the venv's python):
+    python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [SEED ...]
+    python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
+--anchor UM moves the gauge anchor (default 45000 um): the same board at another block position,
+another realisation of the noise and the friction's stick states, to see how much a result moves.
+SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
+`bench/bench_robustness.py --draws 8 --out out/robF` writes).
+
+What it prints: per seed one line: the worst steady-state error |load - target| / target and the
+worst estimation error |estimate - load| / load (%, over both sides), at the 5 N steps and over all
+steps (the target is 2 %). With --trace, per step of that seed and side: the extreme the true
+spring force reached during the step in the step's direction, the extreme of the firmware's
+64-step-filtered F0(d) in that direction, their gap (spring - F0), and estimate - load (mN,
+the hold's means), with the block friction h of the board: the part-1 finding is that the force
+loop ratchets the block to the true spring force's extreme while the filtered F0 flattens it, so
+gap ~ estimate - load.
+"""
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+TARGETS = (5000, 10000, 15000, 10000, 5000)
+SETTLE, HOLD, PRELOAD = 1500, 500, 500
+ANCHOR = [45000]  # um, the gauge anchor (--anchor: another realisation of the same board)
+SIDES = (("high", -1), ("low", 1))
+
+
+def paths(runs, seed):
+    """(board file, identified calibration) of a seed."""
+    if seed == "sim":
+        return os.path.join(ROOT, "boards", "sim.json"), os.path.join(runs, "run-base", "calibration.json")
+    return os.path.join(runs, "board-%s.json" % seed), os.path.join(runs, "run-%s" % seed, "calibration.json")
+
+
+def exact_calibration(board_path, out_path):
+    """An exact model calibration of the board, in the firmware's own deformation (see docstring)."""
+    import numpy as np
+
+    from boards.sim.actuator import Actuator
+    from host.calibration.file import force_table_section
+    from testkit import model
+
+    board = json.load(open(board_path))
+    w = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 1)
+    m1 = w.pots[0].mount_error_mm
+    m2 = w.pots[1].mount_error_mm
+    xs = np.linspace(-1, 61, 6201)
+    d1g = xs + np.array([m1(x) for x in xs])
+    dfg = d1g - (xs + np.array([m2(x) for x in xs]))
+    kg = float(board["actuator"]["gauge"]["stiffness_n_per_mm"])
+    dt = np.unique(np.concatenate([np.linspace(-2.0, 2.0, 81), [-w.d_release, w.d_release]]))
+    f = np.array([w.spring_force(v) for v in dt])
+    keep = np.abs(f) <= 24.0
+    dt, f = dt[keep], f[keep]
+    x2 = ANCHOR[0] / 1000.0 + f / kg
+    x1 = x2 + dt
+    d1 = x1 + np.array([m1(x) for x in x1])
+    dm = d1 - np.interp(d1, d1g, dfg) - (x2 + np.array([m2(x) for x in x2]))
+    sec_f = force_table_section(dm, f, (-2.0, 2.0), ("um", "mN"))
+    sec_i = force_table_section(f, dm, (-25.0, 25.0), ("mN", "um"))
+    model.write_model_calibration(out_path, board=board, force=sec_f, force_inverse=sec_i)
+    return out_path
+
+
+def calibration(runs, seed, exact, tmp):
+    board, cal = paths(runs, seed)
+    if not os.path.exists(board):
+        return board, None
+    if exact:
+        return board, exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
+    return board, cal if os.path.exists(cal) else None
+
+
+def summary(runs, seed, exact, tmp):
+    from tests.sim.firmware_cases import case_force_steps_sim
+
+    board, cal = calibration(runs, seed, exact, tmp)
+    if cal is None:
+        print("%-5s skipped: no board or calibration file (%s)" % (seed, board), flush=True)
+        return
+    rows = []
+    for side, sign in SIDES:
+        rows += case_force_steps_sim(cal, side, [sign * t for t in TARGETS], anchor=ANCHOR[0], settle_ticks=SETTLE,
+                                     hold_ticks=HOLD, preload=PRELOAD, board_path=board)
+    def worst(sel):
+        ss = max(abs(l - t) / abs(t) * 100 for t, e, l in rows if sel(t))
+        es = max(abs(e - l) / abs(l) * 100 for t, e, l in rows if sel(t))
+        return ss, es
+    ss5, es5 = worst(lambda t: abs(t) == 5000)
+    ss, es = worst(lambda t: True)
+    print("%-5s %-5s 5 N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
+          % (seed, "exact" if exact else "run", ss5, es5, ss, es), flush=True)
+
+
+def trace(runs, seed, side, exact, tmp):
+    import boards.sim.machine as sim
+    import tests.sim.firmware_cases as fc
+
+    board, cal = calibration(runs, seed, exact, tmp)
+    if cal is None:
+        sys.exit("no board or calibration file for seed %s under %s" % (seed, runs))
+    h = json.load(open(board))["actuator"]["block"]["coulomb_n"] * 1000
+    app, world, sign = fc._hooked_on_side(cal, side, ANCHOR[0], 200, board)
+    app.set_mode("force")
+    app.set_target(sign * PRELOAD)
+    fc._run(app, 500)
+    print("seed %s side %s (%s calibration), block friction h = %.0f mN; mN, in load units"
+          % (seed, side, "exact" if exact else "run", h))
+    print("target  spring_ext  F0filt_ext    gap  est-load")
+    prev = PRELOAD
+    for t in TARGETS:
+        app.set_target(sign * t)
+        s = 1 if t > prev else -1
+        sp_ext = f0_ext = None
+        est = load = 0.0
+        for k in range(SETTLE + HOLD):
+            sim.run_ticks(1)
+            app.heartbeat()
+            m = app.ctrl.meas
+            sp = sign * world.spring_force_n * 1000.0
+            f0 = sign * (m.fs32 >> 5)
+            if sp_ext is None or s * sp > s * sp_ext:
+                sp_ext = sp
+            if f0_ext is None or s * f0 > s * f0_ext:
+                f0_ext = f0
+            if k >= SETTLE:
+                est += sign * m.force
+                load += -sign * world.external_force_n * 1000.0
+        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / HOLD))
+        prev = t
+    app.shutdown()
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("seeds", nargs="*", default=["1000", "1001", "1005", "1006", "1007", "sim"])
+    ap.add_argument("--runs", default=os.path.join(ROOT, "out", "robF"),
+                    help="a robustness run's output: board-SEED.json, run-SEED/ (default out/robF)")
+    ap.add_argument("--exact", action="store_true", help="exact model calibration instead of the identified one")
+    ap.add_argument("--trace", nargs=2, metavar=("SEED", "SIDE"), help="per-step extremes for one seed and side")
+    ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
+    a = ap.parse_args()
+    ANCHOR[0] = a.anchor
+    if not os.path.isdir(a.runs):
+        sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
+    os.chdir(ROOT)
+    with tempfile.TemporaryDirectory() as tmp:
+        if a.trace:
+            if a.trace[1] not in ("high", "low"):
+                sys.exit("SIDE is high or low")
+            trace(a.runs, a.trace[0], a.trace[1], a.exact, tmp)
+        else:
+            for seed in a.seeds:
+                summary(a.runs, seed, a.exact, tmp)
+
+
+if __name__ == "__main__":
+    main()
