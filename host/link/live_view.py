@@ -133,15 +133,15 @@ class LiveView:
         self.skipped += max(0, behind)
         self._next += (max(0, behind) + 1) * self.period
         self.redraws += 1
-        self._draw()
+        self._paint()
 
     def finish(self):
         """Draw the end of the run once more if records came after the last redraw (outside the
         schedule, not counted in `redraws`), so the picture left on screen shows the whole run."""
         if self._chunks and self._drawn_at != self.clock.seconds:
-            self._draw()
+            self._paint()
 
-    def _draw(self):
+    def _paint(self):
         self._drawn_at = self.clock.seconds
         started = time.perf_counter()
         canvas = self.figure.canvas
