@@ -14,10 +14,15 @@ measures (the pots' mount errors and the Df travel included, the block where the
 for that force) and the friction section equal to the board's true coulomb_n.
 
 Call (from the repository root, the venv's python):
-    python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [SEED ...]
+    python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [--anchors UM,UM] [SEED ...]
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
 --anchor UM moves the gauge anchor (default 45000 um): the same board at another block position,
-another realisation of the noise and the friction's stick states, to see how much a result moves.
+another realisation of the noise and the friction's stick states, to see how much a result moves;
+--anchors UM,UM,... runs each seed at several and prints a tally over all (seed, anchor) cases.
+Diagnostics (each changes what is run, and says so in the tally line):
+    --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280
+    --oversample N       every board read N times a step (the run's own value is used otherwise)
+    --noise LSB          both pots' noise set to LSB (what the loop does with quieter pots)
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
 `bench/bench_robustness.py --draws 8 --out out/robF` writes).
 
@@ -25,8 +30,9 @@ What it prints: per seed one line: the worst steady-state error |load - target| 
 worst estimation error |estimate - load| / load (%, over both sides), at the 5 N steps and over all
 steps (the target is 2 %). With --trace, per step of that seed and side: the extreme the true
 spring force reached during the step in the step's direction, the extreme of the firmware's
-64-step-filtered F0(d) in that direction, their gap (spring - F0), and estimate - load (mN,
-the hold's means), with the block friction h of the board: the part-1 finding is that the force
+64-step-filtered F0(d) in that direction, their gap (spring - F0), estimate - load (mN,
+the hold's means) and the true spring force's standard deviation during the hold (mN: how much
+the loop moves the spring while it holds), with the block friction h of the board: the part-1 finding is that the force
 loop ratchets the block to the true spring force's extreme while the filtered F0 flattens it, so
 gap ~ estimate - load.
 """
@@ -83,22 +89,64 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
+DIAG = {"oversample": None, "noise": None}  # --oversample, --noise
+
+
+def as_run(runs, seed, board, tmp):
+    """The board file as the run used it: bringup's --fix may have raised `oversample` (row.json
+    records the value), and 4 reads a step instead of 16 double the deformation's noise. Then
+    the diagnostics' changes, if any."""
+    row = os.path.join(runs, "run-base" if seed == "sim" else "run-%s" % seed, "row.json")
+    oversample = json.load(open(row)).get("oversample") if os.path.exists(row) else None
+    oversample = DIAG["oversample"] or oversample
+    data = json.load(open(board))
+    if (not oversample or data.get("oversample") == oversample) and DIAG["noise"] is None:
+        return board
+    if oversample:
+        data["oversample"] = oversample
+    if DIAG["noise"] is not None:
+        for pot in ("pot1", "pot2"):
+            data["actuator"]["pots"][pot]["noise_lsb"] = DIAG["noise"]
+    out = os.path.join(tmp, "board-%s.json" % seed)
+    with open(out, "w") as f:
+        json.dump(data, f)
+    return out
+
+
 def calibration(runs, seed, exact, tmp):
     board, cal = paths(runs, seed)
     if not os.path.exists(board):
         return board, None
+    board = as_run(runs, seed, board, tmp)
     if exact:
         return board, exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
     return board, cal if os.path.exists(cal) else None
 
 
+def override_params(pairs):
+    """Replace firmware parameter defaults (before any App is made: the controller copies them)."""
+    import firmware.protocol as protocol
+
+    names = [row[0] for row in protocol.PARAMS]
+    new = {}
+    for pair in pairs:
+        name, _, value = pair.partition("=")
+        if name not in names or not value.lstrip("-").isdigit():
+            sys.exit("--param wants NAME=INTEGER with NAME one of: %s (got %r)" % (", ".join(names), pair))
+        new[name] = int(value)
+    protocol.PARAMS = tuple((row[0], new[row[0]]) + tuple(row[2:]) if row[0] in new else row
+                            for row in protocol.PARAMS)
+
+
 def summary(runs, seed, exact, tmp):
+    """One line for the seed at the present anchor; returns max(ss, est) over all its steps, %,
+    or None when skipped."""
     from tests.sim.firmware_cases import case_force_steps_sim
 
     board, cal = calibration(runs, seed, exact, tmp)
     if cal is None:
         print("%-5s skipped: no board or calibration file (%s)" % (seed, board), flush=True)
-        return
+        return None
     rows = []
     for side, sign in SIDES:
         rows += case_force_steps_sim(cal, side, [sign * t for t in TARGETS], anchor=ANCHOR[0], settle_ticks=SETTLE,
@@ -109,8 +157,9 @@ def summary(runs, seed, exact, tmp):
         return ss, es
     ss5, es5 = worst(lambda t: abs(t) == 5000)
     ss, es = worst(lambda t: True)
-    print("%-5s %-5s 5 N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
-          % (seed, "exact" if exact else "run", ss5, es5, ss, es), flush=True)
+    print("%-5s %-5s anchor %5d  5 N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
+          % (seed, "exact" if exact else "run", ANCHOR[0], ss5, es5, ss, es), flush=True)
+    return max(ss, es)
 
 
 def trace(runs, seed, side, exact, tmp):
@@ -127,13 +176,14 @@ def trace(runs, seed, side, exact, tmp):
     fc._run(app, 500)
     print("seed %s side %s (%s calibration), block friction h = %.0f mN; mN, in load units"
           % (seed, side, "exact" if exact else "run", h))
-    print("target  spring_ext  F0filt_ext    gap  est-load")
+    print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd")
     prev = PRELOAD
     for t in TARGETS:
         app.set_target(sign * t)
         s = 1 if t > prev else -1
         sp_ext = f0_ext = None
         est = load = 0.0
+        held = []
         for k in range(SETTLE + HOLD):
             sim.run_ticks(1)
             app.heartbeat()
@@ -147,7 +197,10 @@ def trace(runs, seed, side, exact, tmp):
             if k >= SETTLE:
                 est += sign * m.force
                 load += -sign * world.external_force_n * 1000.0
-        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / HOLD))
+                held.append(sp)
+        mean = sum(held) / HOLD
+        sd = (sum((v - mean) ** 2 for v in held) / HOLD) ** 0.5
+        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f  %9.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / HOLD, sd))
         prev = t
     app.shutdown()
 
@@ -160,8 +213,20 @@ def main():
     ap.add_argument("--exact", action="store_true", help="exact model calibration instead of the identified one")
     ap.add_argument("--trace", nargs=2, metavar=("SEED", "SIDE"), help="per-step extremes for one seed and side")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
+    ap.add_argument("--anchors", help="several anchors, um, comma-separated (a tally over all cases)")
+    ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
+                    help="diagnostic: a firmware parameter's default replaced (repeatable)")
+    ap.add_argument("--oversample", type=int, help="diagnostic: reads per step on every board")
+    ap.add_argument("--noise", type=float, metavar="LSB", help="diagnostic: both pots' noise, LSB")
     a = ap.parse_args()
     ANCHOR[0] = a.anchor
+    try:
+        anchors = [int(v) for v in a.anchors.split(",")] if a.anchors else [a.anchor]
+    except ValueError:
+        sys.exit("--anchors wants um values separated by commas, e.g. 44000,45000,46000")
+    DIAG["oversample"] = a.oversample
+    DIAG["noise"] = a.noise
+    override_params(a.param)
     if not os.path.isdir(a.runs):
         sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
     os.chdir(ROOT)
@@ -171,8 +236,20 @@ def main():
                 sys.exit("SIDE is high or low")
             trace(a.runs, a.trace[0], a.trace[1], a.exact, tmp)
         else:
-            for seed in a.seeds:
-                summary(a.runs, seed, a.exact, tmp)
+            worst = []
+            for anchor in anchors:
+                ANCHOR[0] = anchor
+                for seed in a.seeds:
+                    w = summary(a.runs, seed, a.exact, tmp)
+                    if w is not None:
+                        worst.append(w)
+            if worst:
+                changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
+                    (["noise=%g LSB" % a.noise] if a.noise is not None else [])
+                print("tally (%s calibration%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
+                      "max %.2f %%" % ("exact" if a.exact else "identified",
+                                       ", " + ", ".join(changed) if changed else "", sum(w <= 2.0 for w in worst),
+                                       len(worst), sum(worst) / len(worst), max(worst)), flush=True)
 
 
 if __name__ == "__main__":
