@@ -16,6 +16,7 @@ for that force) and the friction section equal to the board's true coulomb_n.
 Call (from the repository root, the venv's python):
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [--anchors UM,UM] [SEED ...]
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
+    python bench/bench_force_steps_offline.py [--runs DIR] --ident [--anchors UM,UM] [SEED ...]
 --anchor UM moves the gauge anchor (default 45000 um): the same board at another block position,
 another realisation of the noise and the friction's stick states, to see how much a result moves;
 --anchors UM,UM,... runs each seed at several and prints a tally over all (seed, anchor) cases.
@@ -162,6 +163,43 @@ def summary(runs, seed, exact, tmp):
     return max(ss, es)
 
 
+IDENT_DUTIES = (300, 600, 900, 1200, 1500)  # open-loop levels: about 1-8 N on these actuators
+
+
+def ident(runs, seed, tmp):
+    """Replays the force identification's open-loop steps (case_force_points_sim, loading then
+    unloading, at the anchor) and checks F0 against them: where the block slid, the spring force
+    is the load plus h in the direction it slid, so F0(d) - (load + h * slide) should be 0.
+    Prints that residual's range per side for the identified and the exact calibration (mN)."""
+    from firmware.measurement import Measurement
+    from tests.sim.firmware_cases import case_force_points_sim, load_calibration
+
+    board, cal_run = calibration(runs, seed, False, tmp)
+    _, cal_exact = calibration(runs, seed, True, tmp)
+    if cal_run is None:
+        print("%-5s skipped: no board or calibration file (%s)" % (seed, board), flush=True)
+        return
+    m_run = Measurement(load_calibration(cal_run))
+    m_exact = Measurement(load_calibration(cal_exact))
+    h = m_run.fric
+    parts = []
+    for side, sign in SIDES:
+        rows = case_force_points_sim(cal_run, side, list(IDENT_DUTIES), anchor=ANCHOR[0], board_path=board)
+        res = {"identified": [], "exact": []}
+        prev = None
+        for d, load, loading in rows:
+            if prev is not None and load != prev:  # the block slid (a stuck block keeps its load)
+                slide = 1 if load > prev else -1
+                for name, m in (("identified", m_run), ("exact", m_exact)):
+                    f0 = m.force_eval(d + m.st[16], m.k_force)
+                    res[name].append(f0 - (load + slide * h))
+            prev = load
+        parts.append("%s: identified %+d..%+d, exact %+d..%+d (%d points)" % (
+            side, min(res["identified"]), max(res["identified"]), min(res["exact"]), max(res["exact"]),
+            len(res["identified"])))
+    print("%-5s anchor %5d  F0(d) - (load + h * slide), mN: %s" % (seed, ANCHOR[0], "; ".join(parts)), flush=True)
+
+
 def trace(runs, seed, side, exact, tmp):
     import boards.sim.machine as sim
     import tests.sim.firmware_cases as fc
@@ -212,6 +250,8 @@ def main():
                     help="a robustness run's output: board-SEED.json, run-SEED/ (default out/robF)")
     ap.add_argument("--exact", action="store_true", help="exact model calibration instead of the identified one")
     ap.add_argument("--trace", nargs=2, metavar=("SEED", "SIDE"), help="per-step extremes for one seed and side")
+    ap.add_argument("--ident", action="store_true",
+                    help="check F0 of both calibrations against a replay of the force identification")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
     ap.add_argument("--anchors", help="several anchors, um, comma-separated (a tally over all cases)")
     ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
@@ -235,6 +275,11 @@ def main():
             if a.trace[1] not in ("high", "low"):
                 sys.exit("SIDE is high or low")
             trace(a.runs, a.trace[0], a.trace[1], a.exact, tmp)
+        elif a.ident:
+            for anchor in anchors:
+                ANCHOR[0] = anchor
+                for seed in a.seeds:
+                    ident(a.runs, seed, tmp)
         else:
             worst = []
             for anchor in anchors:
