@@ -392,3 +392,30 @@ def case_position_sticky_sim(path, board_path, targets, settle_ticks=2500, hold_
     app.shutdown()
     assert st["faults"] == [] and st["mode"] == "position", st
     return out
+
+
+def case_force_contact_sim(path, side, target, gap_um, board_path="boards/sim.json", ticks=2000):
+    """Force mode switched on with the fibre `gap_um` slack: the block slides free until the
+    fibre takes it. Returns the largest lead of the deformation setpoint over the measured
+    deformation in the target's direction (um) and the largest true spring force in it (mN)."""
+    import boards.sim.machine as sim
+
+    app, world, sign = _hooked_on_side(path, side, 45000, gap_um, board_path)
+    app.set_mode("force")
+    app.set_target(sign * target)
+    lead = 0
+    peak = 0.0
+    k = 0
+    while k < ticks:
+        sim.run_ticks(1)
+        app.heartbeat()
+        c = app.ctrl
+        v = sign * (c.defl_sp - c.meas.defl)
+        if v > lead:
+            lead = v
+        f = sign * world.spring_force_n * 1000.0
+        if f > peak:
+            peak = f
+        k += 1
+    app.shutdown()
+    return {"lead_um": lead, "spring_peak_mN": int(peak)}
