@@ -76,7 +76,7 @@ def df_table(x, df, folds=5):
                        lambda c, test: ys[test] - np.polyval(c, xs[test]), folds)
 
     def table(train, k):
-        kx = np.asarray(fit_pwl(xs[train], ys[train], k).coefficients["knots_x"])
+        kx = np.asarray(fit_pwl(xs[train], ys[train], k, monotone="off").coefficients["knots_x"])
         return kx, lsq_knot_values(xs[train], ys[train], kx)
 
     best_poly = min(poly_cv(n) for n in range(1, MAX_ORDER + 1))
@@ -84,5 +84,5 @@ def df_table(x, df, folds=5):
                          lambda m, test: ys[test] - np.interp(xs[test], m[0], m[1]), folds) for k in TABLE_KNOTS}
     if min(scores.values()) > TABLE_GAIN * best_poly:
         return None
-    kx = np.asarray(fit_pwl(xs, ys, lowest_near_best(scores, min(scores))).coefficients["knots_x"])
+    kx = np.asarray(fit_pwl(xs, ys, lowest_near_best(scores, min(scores)), monotone="off").coefficients["knots_x"])
     return kx, lsq_knot_values(xs, ys, kx), scores

@@ -108,7 +108,7 @@ def _solve_table(d, f, s, kx, friction):
 def table_knots(d, spring, k):
     """Knot positions of a k-knot free-knot piecewise-linear F0 (host.fitting.piecewise_linear)."""
     order = np.argsort(d, kind="stable")
-    return np.asarray(fit_pwl(d[order], spring[order], k).coefficients["knots_x"])
+    return np.asarray(fit_pwl(d[order], spring[order], k, monotone="off").coefficients["knots_x"])
 
 
 def cv_rms_table(d, f, s, k, friction, h0, full_knots):

@@ -17,7 +17,7 @@ outside), the form the firmware's fixed-point `pwl` runs.
 """
 
 import numpy as np
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, lsq_linear
 
 from host.fitting.fit_result import FitResult
 
@@ -82,6 +82,39 @@ def lsq_knot_values(x, y, knots_x):
     return _solve(_normal_matrix(j, w, kx), rhs)
 
 
+def knot_values(x, y, knots_x, monotone="check", notes=None):
+    """Least-squares knot values; with monotone "check" they follow the data's trend.
+
+    A pot's calibration must never step back, and a piecewise-linear curve is monotone exactly
+    when its knot values are. "check" keeps the free values when they already are; otherwise
+    (two close knots across the noisy cluster read at an end stop, say) it solves them again as
+    a start value plus same-signed increments, a bounded linear least squares, and says so in
+    `notes`. "off" (a curve that may turn, such as Df) returns the free values."""
+    kx = np.asarray(knots_x, dtype=float)
+    v = lsq_knot_values(x, y, kx)
+    if monotone == "off":
+        return v
+    if monotone != "check":
+        raise ValueError('monotone must be "check" or "off", not %r' % (monotone,))
+    trend = 1.0 if np.polyfit(x, y, 1)[0] >= 0 else -1.0
+    if np.all(trend * np.diff(v) >= 0):
+        return v
+    if notes is not None:
+        notes.append("the free knot values stepped back by up to %.3g reference units, so they were solved "
+                     "again constrained to the data's trend" % float(np.max(-trend * np.diff(v))))
+    k = len(kx)
+    j, w = hat_weights(x, kx)
+    basis = np.zeros((len(x), k))
+    rows = np.arange(len(x))
+    basis[rows, j] += 1.0 - w
+    basis[rows, j + 1] += w
+    steps = np.tril(np.ones((k, k)))  # v = steps @ d: d[0] the first value, d[1:] the increments
+    steps[:, 1:] *= trend
+    lower = np.r_[-np.inf, np.zeros(k - 1)]
+    d = lsq_linear(basis @ steps, y, bounds=(lower, np.inf), method="bvls").x
+    return steps @ d
+
+
 def pwl_curve(knots_x, knots_y):
     """Callable linear interpolation through the knots, clamped to the end values outside."""
     kx = np.asarray(knots_x, dtype=float)
@@ -116,11 +149,12 @@ def _result(model, k, n_params, kx, ky, notes=()):
     )
 
 
-def fit_lut(x, y, order, **options):
-    """Lookup table: `order` evenly spaced knots, values by linear least squares."""
+def fit_lut(x, y, order, monotone="check", **options):
+    """Lookup table: `order` evenly spaced knots, values by linear least squares (see knot_values)."""
     x, y, k = _check(x, y, order)
     kx = np.linspace(x[0], x[-1], k)
-    return _result("lut", k, k, kx, lsq_knot_values(x, y, kx))
+    notes = []
+    return _result("lut", k, k, kx, knot_values(x, y, kx, monotone, notes), notes)
 
 
 def segmentation_start(x, y, n_segments, n_grid=64):
@@ -252,8 +286,11 @@ def grow_knots(x, y, knots_x, k):
     return kx
 
 
-def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, start_knots=None, **options):
+def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, start_knots=None, monotone="check", **options):
     """Free-knot piecewise-linear curve with `order` knots (interior positions optimised).
+
+    `monotone` as in `knot_values`: the positions are searched free, the final values follow
+    the data's trend unless "off".
 
     `start_knots` (optional): all knot positions of a fit with fewer knots (e.g. the previous
     order in a sweep over orders); they are grown to `order` knots and used as one more start,
@@ -264,7 +301,8 @@ def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, start_knots=N
     span = hi - lo
     even = np.linspace(lo, hi, k)
     if k == 2:
-        return _result("pwl", k, 2, even, lsq_knot_values(x, y, even))
+        notes = []
+        return _result("pwl", k, 2, even, knot_values(x, y, even, monotone, notes), notes)
     n_inner = k - 2
     xs, ys, wt = binned(x, y, int(max_search_points))
     candidates = [(even[1:-1] - lo) / span]
@@ -291,4 +329,4 @@ def fit_pwl(x, y, order, starts=4, seed=0, max_search_points=2000, start_knots=N
     for start in [even] + ([grown] if start_knots is not None and 2 <= len(start_knots) <= k else []):
         if _sse(x, y, start) < _sse(x, y, kx):
             kx = start
-    return _result("pwl", k, 2 * k - 2, kx, lsq_knot_values(x, y, kx), notes)
+    return _result("pwl", k, 2 * k - 2, kx, knot_values(x, y, kx, monotone, notes), notes)
