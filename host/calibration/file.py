@@ -182,7 +182,7 @@ def update_section(path, name, section, board=None, pots=None):
     return doc
 
 
-def write_pot(path, pot, fit, adc_bits, pot_id=None, board=None):
+def write_pot(path, pot, fit, adc_bits, pot_id=None, board=None, rising=True):
     """Write FitResult `fit` as section `pot` of the calibration file at `path` (created if
     missing, the other sections kept), with the pot's and the board's identity when given;
     returns the file's CRC, the one the board will check. A BCM of degree below 3 is written
@@ -192,14 +192,16 @@ def write_pot(path, pot, fit, adc_bits, pot_id=None, board=None):
     if fit.model == "bcm" and fit.order < 3:
         fit = dataclasses.replace(fit, order=3, coefficients=elevate(fit.coefficients, 3),
                                   notes=fit.notes + ["degree %d elevated to 3 (same curve)" % fit.order])
-    update_section(path, pot, pot_section(fit, adc_bits, pot_id=pot_id), board=board)
+    update_section(path, pot, pot_section(fit, adc_bits, pot_id=pot_id, rising=rising), board=board)
     return parse_document(Path(path).read_text())[1]
 
 
-def pot_section(fit, adc_bits, pot_id=None, max_error_um=None):
-    """A pot section from a FitResult (x in ADC codes, y in mm): float and fixed-point forms."""
+def pot_section(fit, adc_bits, pot_id=None, max_error_um=None, rising=True):
+    """A pot section from a FitResult (x in ADC codes, y in mm): float and fixed-point forms.
+    `rising` (the default) refuses a curve whose integer positions fall anywhere, which a board
+    refuses at boot; False writes any curve (`host fit --force`, file-format tests)."""
     try:
-        kind, fixed = export_pot(fit, adc_bits, max_error_um)
+        kind, fixed = export_pot(fit, adc_bits, max_error_um, rising=rising)
     except ValueError as e:
         raise UserError("cannot export the %s fit for the firmware: %s" % (fit.model, e)) from None
     stats = fit.summary()

@@ -27,12 +27,13 @@ UM_PER_MM = 1000.0
 class FixedExport(list):
     """The exported constants (a list of ints) plus the figures that justified them."""
 
-    def __init__(self, values, kind, max_error, bound, max_intermediate):
+    def __init__(self, values, kind, max_error, bound, max_intermediate, outputs=None):
         super().__init__(int(v) for v in values)
         self.kind = kind
         self.max_error = float(max_error)
         self.bound = float(bound)
         self.max_intermediate = int(max_intermediate)
+        self.outputs = outputs  # what the firmware function gave at each checked input
 
     def report(self):
         return {
@@ -131,7 +132,7 @@ def _finish(kind, k, func, inputs, reference, bound, what, tracked=None):
         raise ValueError("%s: an intermediate reaches %d > 2**30 (would overflow a 32-bit board)" % (what, peak))
     if not err <= bound:
         raise ValueError("%s: integer form is %.3g off float64, over the bound %.3g" % (what, err, bound))
-    return FixedExport(k, kind, err, bound, peak)
+    return FixedExport(k, kind, err, bound, peak, got)
 
 
 # ---------------------------------------------------------------- BCM-3
@@ -299,20 +300,34 @@ def export_curve_table(f, adc_bits, n_points=None, max_error_um=None, unit_um=UM
     raise ValueError("no table of up to %d points meets the bound: %s" % (tries[-1], err))
 
 
-def export_pot(fit, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
-    """(kind, FixedExport) for a pot FitResult: bcm3 when possible, else the best table."""
+def _rising(fixed):
+    """`fixed` if its positions never fall as the code rises (the firmware refuses such a curve
+    at boot, see firmware/measurement.py), else ValueError saying where: a calibration the board
+    would refuse is never written."""
+    steps = np.diff(fixed.outputs)
+    if steps.size and np.min(steps) < 0:
+        code = int(np.argmin(steps)) + 1
+        raise ValueError("the integer curve falls at code %d (%d um after %d): positions must grow with the code"
+                         % (code, fixed.outputs[code], fixed.outputs[code - 1]))
+    return fixed
+
+
+def export_pot(fit, adc_bits, max_error_um=None, unit_um=UM_PER_MM, rising=False):
+    """(kind, FixedExport) for a pot FitResult: bcm3 when possible, else the best table. With
+    `rising`, only an integer curve whose positions never fall is returned (what a board accepts)."""
+    check = _rising if rising else (lambda fixed: fixed)
     c = fit.coefficients
     if fit.model == "bcm" and len(c.get("weights", ())) == 4:
         try:
-            return "bcm3", export_bcm3(c, adc_bits, max_error_um, unit_um)
+            return "bcm3", check(export_bcm3(c, adc_bits, max_error_um, unit_um))
         except ValueError:
             pass
     if fit.model in ("lut", "pwl"):
         try:
-            return "pwl", export_pwl(c["knots_x"], c["knots_y"], adc_bits, max_error_um, unit_um)
+            return "pwl", check(export_pwl(c["knots_x"], c["knots_y"], adc_bits, max_error_um, unit_um))
         except ValueError:
             pass
-    return "pwl", export_curve_table(fit, adc_bits, max_error_um=max_error_um, unit_um=unit_um)
+    return "pwl", check(export_curve_table(fit, adc_bits, max_error_um=max_error_um, unit_um=unit_um))
 
 
 # ---------------------------------------------------------------- polynomials

@@ -47,7 +47,8 @@ def add_parser(subparsers):
     p.add_argument("--json", action="store_true", help="print one JSON object instead of the summary")
     p.add_argument("--force", action="store_true",
                    help="--out: write even a curve that is not monotone or whose rms is over %d times the sweep's "
-                   "noise floor (refused by default: such a sweep's reference is rarely a function of its reading)" % RMS_REFUSE)
+                   "noise floor, or whose integer form falls anywhere (refused by default: such a sweep's reference is rarely a "
+                   "function of its reading, and a board refuses a falling curve at boot)" % RMS_REFUSE)
     p.set_defaults(func=run)
 
 
@@ -115,7 +116,7 @@ def run(args):
             raise UserError("raw does not look like ADC codes; give --adc-bits to write a calibration file")
         say("writing %s section of %s (%d-bit ADC)" % (args.pot, args.out, bits))
         try:
-            crc = write_pot(args.out, args.pot, result, bits, pot_id=args.pot_id, board=args.board)
+            crc = write_pot(args.out, args.pot, result, bits, pot_id=args.pot_id, board=args.board, rising=not args.force)
         except OSError as exc:
             raise UserError("cannot write calibration %s: %s" % (args.out, exc)) from None
         except (ValueError, OverflowError) as exc:  # no inf or NaN ever reaches a file

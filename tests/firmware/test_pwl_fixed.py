@@ -7,7 +7,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware.pwl_fixed import pwl
-from host.calibration.fixed_export import bcm_float, export_curve_table, export_pwl
+from host.calibration.fixed_export import bcm_float, export_curve_table, export_pot, export_pwl
+from host.errors import UserError
+from host.fitting.piecewise_linear import _result as pwl_result
 from testkit.interpreters import evaluate_on_micropython
 
 CODES = np.arange(4096)
@@ -154,3 +156,29 @@ def test_the_board_accepts_exactly_the_tables_that_stay_within_31_bits(table):
         return
     assert accepted, k
     assert track(pwl, codes, k) <= 2**30, k
+
+
+
+def test_a_pot_curve_whose_integer_form_falls_is_never_exported():
+    """The firmware refuses at boot a pot curve whose integer positions fall at any code; asked
+    for a rising curve (as pot_section asks by default) the exporter never gives one. These knots rise at every integer code in float,
+    but the knot at 2001.02 lands on code 2001 at the table's 1/16-code resolution, so the
+    table as such falls there; the exporter takes a table sampled from the curve instead. A
+    curve that really falls is refused with the reason (`calibrate` reports it, writes nothing)."""
+    from host.calibration.file import pot_section
+    from host.fitting.fit_result import is_monotone
+
+    knots_x = [0.0, 2000.0, 2000.5, 2001.02, 4095.0]
+    hidden = pwl_result("pwl", 5, 8, knots_x, [0.0, 30.0, 30.03, 29.999, 60.0])
+    assert is_monotone(hidden, CODES.astype(float))
+    as_is = export_pwl(knots_x, hidden.coefficients["knots_y"], 12)
+    assert as_is.outputs[2001] < as_is.outputs[2000]  # the case is real
+    assert export_pot(hidden, 12)[1] == as_is  # written as is only when asked for any curve
+    kind, k = export_pot(hidden, 12, rising=True)
+    assert kind == "pwl" and np.all(np.diff([pwl(c, k) for c in CODES]) >= 0)
+    assert k.max_error <= k.bound
+    falling = pwl_result("pwl", 4, 6, [0.0, 2000.0, 2010.0, 4095.0], [0.0, 30.0, 29.9, 60.0])
+    with pytest.raises(ValueError, match="falls at code|not monotone"):
+        export_pot(falling, 12, rising=True)
+    with pytest.raises(UserError, match="cannot export"):
+        pot_section(falling, 12)
