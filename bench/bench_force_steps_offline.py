@@ -17,8 +17,10 @@ Call (from the repository root, the venv's python):
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [--anchors UM,UM] [SEED ...]
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
     python bench/bench_force_steps_offline.py [--runs DIR] --ident [--anchors UM,UM] [SEED ...]
---anchor UM moves the gauge anchor (default 45000 um): the same board at another block position,
-another realisation of the noise and the friction's stick states, to see how much a result moves;
+--anchor UM moves the gauge anchor (default 45000 um of D2, where the guided force step and the
+paper's force runs hook it; the fibre is hooked from where the block is, as the virtual rig does):
+the same board at another block position, another realisation of the noise and the friction's
+stick states, to see how much a result moves;
 --anchors UM,UM,... runs each seed at several and prints a tally over all (seed, anchor) cases.
 Diagnostics (each changes what is run, and says so in the tally line):
     --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280

@@ -151,8 +151,14 @@ def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
 
 
 def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
-    """A started app with the file's calibration, the block moved `gap_um` to the slack side of
-    the anchor, the gauge hooked on `side`: (app, world, sign of the forces against it)."""
+    """A started app with the file's calibration, the block moved to `anchor` (um of D2, the
+    firmware's frame) + `gap_um` on the slack side, the gauge hooked on `side` so that the fibre
+    goes taut after the block has moved gap_um: (app, world, sign of the forces against it).
+
+    The anchor is placed from where the block truly is, as boards/sim/bench_rig.py hooks it for
+    the guided steps (a person sees the block, not its true millimetres). A board whose pots
+    carry mounting error reads D2 up to a few mm from the simulation's true position; an anchor
+    at true `anchor` would start the fibre that much slack, or stretched by tens of newtons."""
     from firmware.app import App
 
     import boards.sim.machine as sim
@@ -165,7 +171,8 @@ def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
     app.set_mode("position")
     app.set_target(anchor - sign * gap_um)
     _run(app, 1500)
-    world.set_load("gauge", anchor_mm=anchor / 1000.0, side=side)
+    gap_mm = gap_um / 1000.0
+    world.set_load("gauge", anchor_mm=world.block_mm - gap_mm if side == "high" else world.block_mm + gap_mm, side=side)
     return app, world, sign
 
 
