@@ -100,7 +100,11 @@ def test_the_watchdog_stops_the_motor_after_a_second_of_board_time_without_the_h
         board.call("target", 1500)
         board.start_stream(100)  # the last command: the board's silence counts from here
         alive = stream_for(board, 2.5 * timeout_ms / 1000)  # heartbeats: runs on
-        assert (alive[:, col["duty"]] == 1500).all() and not alive[:, col["faults"]].any()
+        # the stream may open within the slew's ramp to 1500 (500 a step: 500, 1000) when the
+        # board runs its steps in a burst on a loaded machine; from there on the duty must hold
+        up = np.flatnonzero(alive[:, col["duty"]] == 1500)
+        assert up.size and (alive[:up[0], col["duty"]] < 1500).all() and up[0] <= 2, alive[:5, col["duty"]]
+        assert (alive[up[0]:, col["duty"]] == 1500).all() and not alive[:, col["faults"]].any()
         board.call("target", -1500)  # heard: silence from here
         quiet = stream_for(board, 2.0 * timeout_ms / 1000, heartbeat=False)
         status = board.call("status")
