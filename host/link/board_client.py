@@ -26,6 +26,7 @@ from host.link.frames import FrameDecoder
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 PATIENCE_S = 8.0  # wall-clock seconds a request resends before the board counts as not answering
+RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this long without a hello
 
 
 class BoardError(UserError):
@@ -103,19 +104,26 @@ class BoardClient:
 
     def soft_reset(self, wait=1.5):
         """Leave whatever runs (Ctrl-C), go to the friendly REPL (Ctrl-B), soft reset (Ctrl-D):
-        a board then boots main.py, i.e. the firmware."""
+        a board then boots main.py, i.e. the firmware. True once its hello frame came.
+
+        Tried again every RESET_RETRY_S while `wait` lasts: a tool killed halfway through a
+        transfer (mpremote in raw-paste mode) can leave the REPL where the first sequence only
+        ends the transfer, and the second one then resets."""
         ser = self.serial
-        ser.write(b"\r\x03\x03")
-        time.sleep(0.2)
-        ser.write(b"\r\x02")
-        time.sleep(0.2)
-        ser.write(b"\x04")
         deadline = time.monotonic() + wait
-        while time.monotonic() < deadline:
-            for frame in self._read_frames():
-                if frame.type == P.T_HELLO:
-                    return True
-        return False
+        while True:
+            ser.write(b"\r\x03\x03")
+            time.sleep(0.2)
+            ser.write(b"\r\x02")
+            time.sleep(0.2)
+            ser.write(b"\x04")
+            retry = min(deadline, time.monotonic() + RESET_RETRY_S)
+            while time.monotonic() < retry:
+                for frame in self._read_frames():
+                    if frame.type == P.T_HELLO:
+                        return True
+            if time.monotonic() >= deadline:
+                return False
 
     # -- requests ----------------------------------------------------------------------
     def _next_seq(self):
