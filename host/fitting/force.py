@@ -23,7 +23,7 @@ import numpy as np
 from host.errors import UserError
 from host.fitting.cross_validation import cv_rms as _cv_rms
 from host.fitting.cross_validation import lowest_near_best
-from host.fitting.piecewise_linear import fit_pwl, hat_weights
+from host.fitting.piecewise_linear import fit_pwl, hat_matrix
 
 MAX_ORDER = 5
 
@@ -77,19 +77,11 @@ def cv_rms(d, f, s, order, friction):
     return _cv_rms(len(d), lambda train: _solve(d[train], f[train], s[train], order, friction), residuals)
 
 
-def _hat(d, kx):
-    j, w = hat_weights(d, kx)
-    a = np.zeros((len(d), len(kx)))
-    a[np.arange(len(d)), j] = 1.0 - w
-    a[np.arange(len(d)), j + 1] = w
-    return a
-
-
 def _solve_table(d, f, s, kx, friction):
     """Knot values (and h) by least squares. A knot span with no points (a cross-validation fold
     can leave one) would get any value; a faint penalty on the change of slope at each interior
     knot puts such knots on the line through their neighbours and leaves the rest to the data."""
-    a = _hat(d, kx)
+    a = hat_matrix(d, kx)
     if friction:
         a = np.column_stack([a, s])
     k = len(kx)

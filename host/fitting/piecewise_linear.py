@@ -37,6 +37,16 @@ def hat_weights(x, knots_x):
     return j, w
 
 
+def hat_matrix(x, knots_x):
+    """The dense hat (linear B-spline) basis: row i holds x[i]'s weights on each knot."""
+    j, w = hat_weights(x, knots_x)
+    a = np.zeros((len(x), len(knots_x)))
+    rows = np.arange(len(x))
+    a[rows, j] += 1.0 - w
+    a[rows, j + 1] += w
+    return a
+
+
 def _normal_matrix(j, w, kx, wt=1.0):
     """A^T W A of the hat basis (tridiagonal, by bincount in O(m)) plus the tie-break penalty."""
     k = len(kx)
@@ -103,11 +113,7 @@ def knot_values(x, y, knots_x, monotone="check", notes=None):
         notes.append("the free knot values stepped back by up to %.3g reference units, so they were solved "
                      "again constrained to the data's trend" % float(np.max(-trend * np.diff(v))))
     k = len(kx)
-    j, w = hat_weights(x, kx)
-    basis = np.zeros((len(x), k))
-    rows = np.arange(len(x))
-    basis[rows, j] += 1.0 - w
-    basis[rows, j + 1] += w
+    basis = hat_matrix(x, kx)
     steps = np.tril(np.ones((k, k)))  # v = steps @ d: d[0] the first value, d[1:] the increments
     steps[:, 1:] *= trend
     lower = np.r_[-np.inf, np.zeros(k - 1)]
