@@ -238,7 +238,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     if np.count_nonzero(taut) < 6:
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
-    fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction)
+    fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, loading=lt)
     unexported = None
     if fit.kind == "pwl":
         try:
@@ -246,8 +246,9 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
             force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
         except UserError as exc:  # a table the firmware cannot hold: the polynomial it beat is kept
             unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
-            fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, tables=False)
-    drive = fit_drive(duty[taut], ft - fit.friction_n * st, fit.friction_n)
+            fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, tables=False, loading=lt)
+    on_edge = ~fit.left_out
+    drive = fit_drive(duty[taut][on_edge], (ft - fit.friction_n * st)[on_edge], fit.friction_n)
     plain = fit_force(dt, ft, st, fit.order_f, friction=False, tables=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
                hysteresis_n(dt[ft > 0], ft[ft > 0], lt[ft > 0], fit.order_f) if np.any(ft > 0) else 0.0)
@@ -259,8 +260,11 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "force: F0(d) is a %d-knot table (cross-validated rms %.3f N against %.3f N for the best polynomial): "
         "d %s mm -> F0 %s N" % (len(fit.knots_d), min(fit.table_scores.values()), min(fit.scores.values()),
                               ", ".join("%.3f" % v for v in fit.knots_d), ", ".join("%.2f" % v for v in fit.knots_f)),
-        "force: block friction h = %.3f N; fit rms %.3f N, max %.3f N (without the friction term: rms %.3f N)" % (
-            fit.friction_n, fit.rms_n, fit.max_n, plain.rms_n) if opts.friction else
+        "force: block friction h = %.3f N; fit rms %.3f N, max %.3f N (without the friction term: rms %.3f N)%s" % (
+            fit.friction_n, fit.rms_n, fit.max_n, plain.rms_n,
+            "; %d point(s) just after a turn left out: the spring had moved less than 2h since, so the block had "
+            "not slid and its friction was inside the band" % np.count_nonzero(fit.left_out)
+            if np.any(fit.left_out) else "") if opts.friction else
         "force: no friction term (--no-friction); fit rms %.3f N, max %.3f N" % (fit.rms_n, fit.max_n),
         "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (
             _poly_text(fit.coeffs_d, "F") if fit.kind == "poly" else "the table's inverse", 1000 * fit.rms_d_mm),
@@ -272,6 +276,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "force: no friction feed-forward for position control (%s)" % drive.why,
     ] + ([unexported] if unexported else [])
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
+               "left_out": int(np.count_nonzero(fit.left_out)),
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
     stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
     sections = {
@@ -280,12 +285,14 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d) if fit.kind == "poly" else
         force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"), stats_d),
         # always written, so that a --no-friction run also replaces an older friction section
-        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(len(dt)),
+        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(np.count_nonzero(on_edge)),
                                                       "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
                                      ff_duty=drive.ff_duty),
     }
     png = opts.out_dir / "calibration-force.png"
-    plot_force(png, d, f, s, fit)
+    inside = np.zeros(len(d), dtype=bool)
+    inside[np.flatnonzero(taut)[fit.left_out]] = True
+    plot_force(png, d, f, s, fit, inside)
     data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "order": fit.order_f,
             "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d, "kind": fit.kind,
             "knots_d": fit.knots_d, "knots_f": fit.knots_f,
@@ -294,14 +301,19 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)
 
 
-def plot_force(path, d, f, s, fit):
+def plot_force(path, d, f, s, fit, inside=None):
     from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
 
     fig = Figure(figsize=(7, 6.5))
     ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
-    down = s > 0
+    inside = np.zeros(len(d), dtype=bool) if inside is None else inside
+    down = (s > 0) & ~inside
+    up = (s <= 0) & ~inside
     ax.plot(d[down], f[down], "v", color="tab:red", ms=4, label="force fell (block slid toward 0 mm)")
-    ax.plot(d[~down], f[~down], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
+    ax.plot(d[up], f[up], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
+    if np.any(inside):
+        ax.plot(d[inside], f[inside], "o", mfc="none", color="0.3", ms=5,
+                label="just after a turn, inside the band (left out)")
     grid = np.linspace(np.min(d), np.max(d), 200)
     spring = fit.f0(grid)
     ax.plot(grid, spring, "k-", lw=1, label="F0(d), %s (spring)" % (
@@ -314,7 +326,8 @@ def plot_force(path, d, f, s, fit):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     resid = f - fit.f0(d) - fit.friction_n * s
-    ax2.plot(d, resid * 1000, ".", color="tab:green", ms=4)
+    ax2.plot(d[~inside], resid[~inside] * 1000, ".", color="tab:green", ms=4)
+    ax2.plot(d[inside], resid[inside] * 1000, "o", mfc="none", color="0.3", ms=4)
     ax2.axhline(0, color="0.5", lw=0.6)
     ax2.set_xlabel("spring deformation d = D1* - D2 (mm)")
     ax2.set_ylabel("residual (mN)")

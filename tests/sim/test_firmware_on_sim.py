@@ -83,9 +83,9 @@ def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_pat
         for d_um, f_mN, loading in on_cpython("case_force_points_sim(%r, %r, %r)" % (cal_path, side, [800, 1600, 2400, 3200, 4000, 4800])):
             if abs(f_mN) > 300:
                 s = (1 if loading else -1) * (1 if side == "high" else -1)
-                points.append((d_um / 1000.0, f_mN / 1000.0, s))
-    d, f, s = (np.array(c) for c in zip(*points))
-    fit = fit_force(d, f, s, "auto")
+                points.append((d_um / 1000.0, f_mN / 1000.0, s, loading))
+    d, f, s, loading = (np.array(c) for c in zip(*points))
+    fit = fit_force(d, f, s, "auto", loading=loading)
     plain = fit_force(d, f, s, fit.order_f, friction=False)
     assert 0.15 < fit.friction_n < 0.35 and fit.rms_n < plain.rms_n / 3, (fit, plain)
     path = tmp_path / "identified.json"
@@ -124,9 +124,9 @@ def test_force_steps_on_a_spring_that_lifts_off_use_a_table_within_2_percent(tmp
             str(path), side, [650 * i for i in range(1, 9)], str(board_path))
         for d_um, f_mN, loading in on_cpython(call):
             if abs(f_mN) > 300:
-                points.append((d_um / 1000.0, f_mN / 1000.0, (1 if loading else -1) * (1 if side == "high" else -1)))
-    d, f, s = (np.array(c) for c in zip(*points))
-    fit = fit_force(d, f, s, "auto")
+                points.append((d_um / 1000.0, f_mN / 1000.0, (1 if loading else -1) * (1 if side == "high" else -1), loading))
+    d, f, s, loading = (np.array(c) for c in zip(*points))
+    fit = fit_force(d, f, s, "auto", loading=loading)
     poly_only = fit_force(d, f, s, "auto", tables=False)
     assert fit.kind == "pwl" and fit.rms_n * 3 < poly_only.rms_n, (fit.rms_n, poly_only.rms_n)
     identified = tmp_path / "identified.json"
