@@ -12,7 +12,7 @@ from boards.sim.actuator import Actuator
 from firmware.calibration import CalibrationError, poly_constants
 from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 from host.calibration.file import force_table_section
-from host.fitting.force import fit_force, inside_band
+from host.fitting.force import fit_force, inside_band, spring_like
 from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
 
 
@@ -115,6 +115,18 @@ def test_levels_wider_than_the_friction_band_leave_nothing_out():
     d, f, s, loading, spring, _ = _played_points(0.3, 16.0)
     fit = fit_force(d, f, s, loading=loading)
     assert not np.any(fit.left_out) and abs(fit.friction_n - 0.3) < 0.02
+
+
+def test_a_table_flat_between_two_knots_is_not_a_spring():
+    """The table a replay of seed 1006's force step (docs/robustness.md; 3.6 N levels on a 46 N
+    motor) got before the check: 0.09 N/mm between two knots in a gap, 44 N/mm beside them, and
+    force steps 25 % off at 5 N. A spring pair's stiffness only halves where one spring lifts off."""
+    flat = ([-2000, -1081, -795, -243, 158, 298, 448, 799, 1098, 2000],
+            [-34149, -18059, -13058, -3799, 1093, 7209, 7222, 12845, 18058, 33760])
+    assert not spring_like(*(np.array(v, dtype=float) for v in flat))
+    lift_off = ([-1.0, 0.0, 0.5, 1.0], [-17.0, 0.0, 8.5, 12.75])  # 17 N/mm, halving past 0.5 mm
+    assert spring_like(*(np.array(v) for v in lift_off))
+    assert not spring_like(np.array([0.0, 1.0, 2.0]), np.array([0.0, 5.0, 4.0]))  # falls
 
 
 @pytest.mark.parametrize("bad", [
