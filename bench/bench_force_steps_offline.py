@@ -8,13 +8,16 @@ preload, each step settled 1.5 s (1500 ticks) then measured 0.5 s (500 ticks).
 Which actuators: for each SEED, the board file RUNS/board-SEED.json and the calibration the
 robustness run identified for it, RUNS/run-SEED/calibration.json; with seed "sim", the
 repository's boards/sim.json and RUNS/run-base/calibration.json (skipped if that file is missing).
+With --refit the run's force sections are identified again by replaying the guided force step
+(refit_calibration: the run's pots and Df, the fit of today's code), so that a change to the
+force fit can be judged on the same actuators without a robustness run.
 With --exact the identified calibration is replaced by an exact model calibration of that board
 (testkit/model.py write_model_calibration): F0 tabled against the deformation the firmware
 measures (the pots' mount errors and the Df travel included, the block where the gauge holds it
 for that force) and the friction section equal to the board's true coulomb_n.
 
 Call (from the repository root, the venv's python):
-    python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [--anchors UM,UM] [SEED ...]
+    python bench/bench_force_steps_offline.py [--runs DIR] [--exact | --refit] [--anchors UM,UM] [SEED ...]
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
     python bench/bench_force_steps_offline.py [--runs DIR] --ident [--anchors UM,UM] [SEED ...]
 --anchor UM moves the gauge anchor (default 45000 um of D2, where the guided force step and the
@@ -116,6 +119,48 @@ def as_run(runs, seed, board, tmp):
     return out
 
 
+REFIT = {"on": False}  # --refit
+REFIT_ROUNDS = 2  # the guided step's defaults: --rounds 2, --levels 8 (625 duty), --force-range 16
+REFIT_LEVEL, REFIT_MAX_DUTY, REFIT_RANGE_MN = 625, 9000, 16000
+REFIT_ANCHOR = 45000  # where the run identified F0 (--anchor-mm 45); the steps may then go elsewhere
+
+
+def refit_calibration(board, cal, out_path):
+    """The run's calibration with its force sections identified again, here and now: the guided
+    force step's open-loop points replayed on the board with the run's pots and Df
+    (case_force_points_sim at REFIT_ANCHOR, REFIT_ROUNDS rounds a side, each loading until the gauge
+    reads 16 N or the spring nears the cavity, each on a freshly started firmware), fitted by the guided step's
+    own code (host/guided/force_calibration.py identify and force_sections). What a change to the
+    force fit does to the force steps, without a run of the whole chain."""
+    import numpy as np
+
+    from host.calibration.file import read_calibration, write_calibration
+    from host.guided.force_calibration import CAVITY_NEAR_MM, TAUT_N, force_sections, identify
+    from tests.sim.firmware_cases import case_force_points_sim
+
+    levels = list(range(REFIT_LEVEL, REFIT_MAX_DUTY + 1, REFIT_LEVEL))
+    pts = []
+    for side, sign in SIDES:
+        for _ in range(REFIT_ROUNDS):
+            rows = case_force_points_sim(cal, side, levels, anchor=REFIT_ANCHOR, board_path=board,
+                                         stop_mN=REFIT_RANGE_MN, stop_um=int(CAVITY_NEAR_MM * 1000))
+            top = sum(1 for r in rows if r[2])
+            duties = levels[:top] + levels[:top - 1][::-1]
+            for (d_um, f_mn, loading), duty in zip(rows, duties):
+                # s as the guided step gives it: +1 after the force fell
+                pts.append((d_um / 1000.0, f_mn / 1000.0, (1 if loading else -1) * -sign, bool(loading), sign * duty))
+    d, f, s, loading, duty = (np.array(c) for c in zip(*pts))
+    taut = np.abs(f) > TAUT_N
+    fit, drive, _ = identify(d[taut], f[taut], s[taut], loading[taut], duty[taut].astype(float))
+    doc = read_calibration(cal)
+    doc.update(force_sections(fit, drive))
+    write_calibration(out_path, doc)
+    print("      refit: %d points (%d left out inside the band), F0 %s, h %.3f N" % (
+        np.count_nonzero(taut), np.count_nonzero(fit.left_out), "table" if fit.kind == "pwl" else
+        "order %d" % fit.order_f, fit.friction_n), flush=True)
+    return out_path
+
+
 def calibration(runs, seed, exact, tmp):
     board, cal = paths(runs, seed)
     if not os.path.exists(board):
@@ -123,7 +168,12 @@ def calibration(runs, seed, exact, tmp):
     board = as_run(runs, seed, board, tmp)
     if exact:
         return board, exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
-    return board, cal if os.path.exists(cal) else None
+    if not os.path.exists(cal):
+        return board, None
+    if REFIT["on"]:
+        out = os.path.join(tmp, "refit-%s.json" % seed)
+        return board, out if os.path.exists(out) else refit_calibration(board, cal, out)
+    return board, cal
 
 
 def override_params(pairs):
@@ -161,7 +211,7 @@ def summary(runs, seed, exact, tmp):
     ss5, es5 = worst(lambda t: abs(t) == 5000)
     ss, es = worst(lambda t: True)
     print("%-5s %-5s anchor %5d  5 N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
-          % (seed, "exact" if exact else "run", ANCHOR[0], ss5, es5, ss, es), flush=True)
+          % (seed, "exact" if exact else "refit" if REFIT["on"] else "run", ANCHOR[0], ss5, es5, ss, es), flush=True)
     return max(ss, es)
 
 
@@ -215,7 +265,7 @@ def trace(runs, seed, side, exact, tmp):
     app.set_target(sign * PRELOAD)
     fc._run(app, 500)
     print("seed %s side %s (%s calibration), block friction h = %.0f mN; mN, in load units"
-          % (seed, side, "exact" if exact else "run", h))
+          % (seed, side, "exact" if exact else "refit" if REFIT["on"] else "run", h))
     print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd")
     prev = PRELOAD
     for t in TARGETS:
@@ -252,6 +302,8 @@ def main():
                     help="a robustness run's output: board-SEED.json, run-SEED/ (default out/robF)")
     ap.add_argument("--exact", action="store_true", help="exact model calibration instead of the identified one")
     ap.add_argument("--trace", nargs=2, metavar=("SEED", "SIDE"), help="per-step extremes for one seed and side")
+    ap.add_argument("--refit", action="store_true",
+                    help="identify the force sections again by replaying the guided force step (the run's pots and Df kept)")
     ap.add_argument("--ident", action="store_true",
                     help="check F0 of both calibrations against a replay of the force identification")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
@@ -266,6 +318,7 @@ def main():
         anchors = [int(v) for v in a.anchors.split(",")] if a.anchors else [a.anchor]
     except ValueError:
         sys.exit("--anchors wants um values separated by commas, e.g. 44000,45000,46000")
+    REFIT["on"] = a.refit
     DIAG["oversample"] = a.oversample
     DIAG["noise"] = a.noise
     override_params(a.param)
@@ -294,7 +347,7 @@ def main():
                 changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else [])
                 print("tally (%s calibration%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
-                      "max %.2f %%" % ("exact" if a.exact else "identified",
+                      "max %.2f %%" % ("exact" if a.exact else "re-identified" if a.refit else "identified",
                                        ", " + ", ".join(changed) if changed else "", sum(w <= 2.0 for w in worst),
                                        len(worst), sum(worst) / len(worst), max(worst)), flush=True)
 

@@ -220,6 +220,40 @@ def _poly_text(c, var):
     return " + ".join("%.4g %s^%d" % (v, var, n - i) for i, v in enumerate(c))
 
 
+def identify(d, f, s, loading, duty, order="auto", friction=True):
+    """The force step's fit of its taut points, in the order taken: (ForceFit, Drive, a note or
+    None). A table the firmware cannot hold gives way to the polynomial it beat (the note says
+    so); the drive is fitted on the points at the band's edge (not ForceFit.left_out)."""
+    fit = fit_force(d, f, s, order, friction=friction, loading=loading)
+    unexported = None
+    if fit.kind == "pwl":
+        try:
+            force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
+            force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
+        except UserError as exc:
+            unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
+            fit = fit_force(d, f, s, order, friction=friction, tables=False, loading=loading)
+    on_edge = ~fit.left_out
+    drive = fit_drive(duty[on_edge], (f - fit.friction_n * s)[on_edge], fit.friction_n)
+    return fit, drive, unexported
+
+
+def force_sections(fit, drive, stats_f=None):
+    """The calibration sections `force`, `force_inverse` and `friction` of a fit (identify)."""
+    stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
+    table = fit.kind == "pwl"
+    return {
+        "force": force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"), stats_f) if table else
+        poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
+        "force_inverse": force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"), stats_d) if table else
+        poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
+        # always written, so that a --no-friction run also replaces an older friction section
+        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(np.count_nonzero(~fit.left_out)),
+                                                      "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
+                                     ff_duty=drive.ff_duty),
+    }
+
+
 def calibrate_force(session, rig, prompter, opts, calibration_path):
     from host.calibration.file import read_calibration
 
@@ -238,17 +272,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     if np.count_nonzero(taut) < 6:
         return StepOutcome("force", {}, ["force: the gauge never read a force (is the fibre hooked?)"], [], ok=False)
     dt, ft, st, lt = d[taut], f[taut], s[taut], loading[taut]
-    fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, loading=lt)
-    unexported = None
-    if fit.kind == "pwl":
-        try:
-            force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
-            force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
-        except UserError as exc:  # a table the firmware cannot hold: the polynomial it beat is kept
-            unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
-            fit = fit_force(dt, ft, st, opts.force_order, friction=opts.friction, tables=False, loading=lt)
-    on_edge = ~fit.left_out
-    drive = fit_drive(duty[taut][on_edge], (ft - fit.friction_n * st)[on_edge], fit.friction_n)
+    fit, drive, unexported = identify(dt, ft, st, lt, duty[taut], opts.force_order, opts.friction)
     plain = fit_force(dt, ft, st, fit.order_f, friction=False, tables=False)  # what the paper's fit leaves
     hyst = max(hysteresis_n(dt[ft < 0], ft[ft < 0], lt[ft < 0], fit.order_f) if np.any(ft < 0) else 0.0,
                hysteresis_n(dt[ft > 0], ft[ft > 0], lt[ft > 0], fit.order_f) if np.any(ft > 0) else 0.0)
@@ -278,22 +302,12 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
                "left_out": int(np.count_nonzero(fit.left_out)),
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
-    stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
-    sections = {
-        "force": poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f) if fit.kind == "poly" else
-        force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"), stats_f),
-        "force_inverse": poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d) if fit.kind == "poly" else
-        force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"), stats_d),
-        # always written, so that a --no-friction run also replaces an older friction section
-        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(np.count_nonzero(on_edge)),
-                                                      "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
-                                     ff_duty=drive.ff_duty),
-    }
+    sections = force_sections(fit, drive, stats_f)
     png = opts.out_dir / "calibration-force.png"
     inside = np.zeros(len(d), dtype=bool)
     inside[np.flatnonzero(taut)[fit.left_out]] = True
     plot_force(png, d, f, s, fit, inside)
-    data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "order": fit.order_f,
+    data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "duty": duty, "order": fit.order_f,
             "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d, "kind": fit.kind,
             "knots_d": fit.knots_d, "knots_f": fit.knots_f,
             "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,

@@ -176,15 +176,21 @@ def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
     return app, world, sign
 
 
-def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/sim.json"):
+def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/sim.json", stop_mN=0, stop_um=0):
     """Force identification as the guided step does it, on the simulated actuator: open-loop duty
-    steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading]."""
+    steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading].
+    With `stop_mN` (and `stop_um`) the loading ends at the first level whose load (deformation)
+    reaches it, as the guided step's --force-range (and CAVITY_NEAR_MM) end it, and the
+    unloading goes down from there."""
     app, world, sign = _hooked_on_side(path, side, anchor, 1500, board_path)
     app.set_mode("open_loop")
     rows = []
-    seq = [(duty, 1) for duty in levels] + [(duty, 0) for duty in levels[::-1][1:]]
     previous = 0
-    for duty, loading in seq:
+    top = len(levels)
+    n = 0
+    while n < 2 * top - 1:
+        loading = 1 if n < top else 0
+        duty = levels[n] if loading else levels[2 * top - 2 - n]
         j = 1
         while j <= 10:  # ramped over 0.3 s, as host/guided/force_calibration.py does
             app.set_target(sign * (previous + (duty - previous) * j // 10))
@@ -199,6 +205,10 @@ def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/s
             defl += app.ctrl.meas.defl
             k += 1
         rows.append([defl // 300, int(-world.external_force_n * 1000.0), loading])
+        if loading and n < top - 1 and ((stop_mN and abs(rows[-1][1]) >= stop_mN) or (stop_um and abs(rows[-1][0]) >= stop_um)):
+            top = n + 1  # unload from this level
+            n = top - 1
+        n += 1
     app.shutdown()
     return rows
 

@@ -68,6 +68,18 @@ def test_force_mode_holds_gauge_targets_on_sim(cal_path):
         assert out["true_err_mN"] <= 1000, out
 
 
+def test_force_points_stop_loading_at_the_force_range(cal_path):
+    """The replayed force step (bench/bench_force_steps_offline.py --refit) ends its loading at
+    the first level whose load reaches the range, as the guided step's --force-range does, and
+    unloads from there level by level."""
+    levels = [800 * i for i in range(1, 12)]
+    rows = on_cpython("case_force_points_sim(%r, 'high', %r, stop_mN=8000)" % (cal_path, levels))
+    loads = [abs(load) for _, load, loading in rows if loading]
+    assert loads[-1] >= 8000 and max(loads[:-1]) < 8000 and len(loads) < len(levels), loads
+    unloads = [abs(load) for _, load, loading in rows if not loading]
+    assert len(unloads) == len(loads) - 1 and unloads == sorted(unloads, reverse=True), unloads
+
+
 def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_path, cal_path):
     """The force identification of the guided step (open-loop duty steps against a gauge on each
     side, F = F0(d) + h s fitted by host/fitting/force.py), then force steps of
