@@ -25,6 +25,16 @@ def _save_sweep(path, data):
             w.writerow([int(x), "%.5f" % y, int(d)])
 
 
+def _save_columns(path, columns):
+    """Named columns of numbers as CSV, in the order measured: what a later refit starts from."""
+    names = list(columns)
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(names)
+        for row in zip(*(columns[n] for n in names)):
+            w.writerow(["%.6g" % float(v) for v in row])
+
+
 def save_results(path, results):
     """The run's measured results as JSON (numpy values as plain numbers)."""
     import json
@@ -148,6 +158,10 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     results["paper_method_offline"] = paper_method_offline(pots, accepted["assembly"].data, accepted["force"].data)
     for pot in ("pot1", "pot2"):
         _save_sweep(out_dir / ("sweep-%s.csv" % pot), pots[pot])
+    asm, frc = accepted["assembly"].data, accepted["force"].data
+    _save_columns(out_dir / "df-samples.csv", {"d1_mm": asm["d1_mm"], "df_mm": asm["df_mm"], "direction": asm["direction"]})
+    _save_columns(out_dir / "force-points.csv", {"d_mm": frc["d_mm"], "force_n": frc["force_n"], "s": frc["s"],
+                                                 "loading": frc["loading"], "duty": frc["duty"]})
     calibrated = Path(opts.out)
     results["fig5"] = accepted["assembly"].data["stats"]
     progress.done()
