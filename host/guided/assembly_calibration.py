@@ -14,7 +14,7 @@ import numpy as np
 from firmware.calibration import CalibrationError, convert, load_calibration
 from host.errors import UserError
 from host.calibration.file import force_table_section, poly_section
-from host.fitting.assembly import binned_peak, df_table, fit_df
+from host.fitting.assembly import STOP_ZONE_UM, binned_peak, df_table, fit_df, near_the_stops
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 
@@ -37,6 +37,8 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     if len(records) < 50:
         return StepOutcome("assembly", {}, ["assembly: almost no data (did the block move?)"], [], ok=False)
     d1, d2 = positions_um(calibration_path, records[:, acquire.COL["raw1"]], records[:, acquire.COL["raw2"]])
+    near = near_the_stops(d2, STOP_ZONE_UM)
+    d1, d2, direction = d1[~near], d2[~near], direction[~near]
     x = d1 / 1000.0
     df = (d1 - d2) / 1000.0
     coeffs, resid, order, scores = fit_df(x, df, opts.df_order)
@@ -58,7 +60,8 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
             coeffs = np.polyfit(x, df, order)
             resid = df - np.polyval(coeffs, x)
     lines = [
-        "Df: %d samples over D1 %.1f..%.1f mm" % (len(x), lo, hi),
+        "Df: %d samples over D1 %.1f..%.1f mm (%d within %.1f mm of an end stop left out)" % (
+            len(x), lo, hi, np.count_nonzero(near), STOP_ZONE_UM / 1000.0),
         "Df: cross-validated rms by order: " + ", ".join("%d: %.1f um" % (n, 1000 * s) for n, s in scores.items()),
         "Df: order %d, peak |Df| before %.3f mm, peak residual after %.3f mm of single samples, %.3f mm of "
         "1 mm bin means (rms %.1f um)" % (order, np.max(np.abs(df)), np.max(np.abs(resid)), binned_peak(x, resid),

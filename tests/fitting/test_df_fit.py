@@ -7,7 +7,7 @@ import numpy as np
 
 from firmware.pwl_fixed import DF_PWL_OFFSET, df_table_input, pwl
 from host.calibration.file import force_table_section
-from host.fitting.assembly import binned_peak, choose_order, df_table
+from host.fitting.assembly import binned_peak, choose_order, df_table, fit_df, near_the_stops
 from testkit.interpreters import on_cpython, on_micropython
 from testkit.model import write_model_calibration
 
@@ -22,6 +22,26 @@ def _sweep(kinks, seed=4):
     for at, slope in kinks:  # what a pot table's knots leave: changes of slope
         df += slope * np.abs(x - at)
     return x, df + rng.normal(0.0, 0.06, len(x))
+
+
+def test_samples_held_at_an_end_stop_are_not_fitted():
+    """A sweep that ends against each stop: the block is held while the nut runs 0.6 mm on into
+    the spring, so D1 - D2 there is the spring's deformation. Fitted with those samples, Df
+    chases them (a higher order, bin means off by more than the target's 0.1 mm); without them
+    it is the mounting error's quartic again."""
+    x, df = _sweep([])
+    d2 = x - df
+    held = np.linspace(0.0, 0.6, 60)  # the spring's deformation while the stop holds the block
+    x_all = np.concatenate([x.min() - held, x, x.max() + held])
+    d2_all = np.concatenate([np.full(60, d2.min() - 0.05), d2, np.full(60, d2.max() + 0.05)])
+    df_all = x_all - d2_all
+    _, resid, order, _ = fit_df(x_all, df_all, "auto")
+    assert binned_peak(x_all, resid) > 0.1, (order, binned_peak(x_all, resid))
+    near = near_the_stops(d2_all * 1000.0)
+    assert np.all(near[:60]) and np.all(near[-60:])
+    assert np.count_nonzero(near[60:-60]) < 0.02 * len(x)  # the sweep itself keeps its samples
+    _, resid, order, _ = fit_df(x_all[~near], df_all[~near], "auto")
+    assert order == 4 and binned_peak(x_all[~near], resid) < 0.03, (order, binned_peak(x_all[~near], resid))
 
 
 def test_a_smooth_df_keeps_its_polynomial():
