@@ -148,3 +148,17 @@ def test_a_stopped_experiment_keeps_what_it_measured(tmp_path, monkeypatch, caps
     assert saved["stopped"]["phase"] == "Fig. 7 and Fig. 8"
     report = (out / "report.md").read_text()
     assert "stopped during **Fig. 7 and Fig. 8**" in report and "pwl order 12" in report
+
+
+def test_a_runs_samples_are_saved_as_named_columns_in_the_order_taken(tmp_path):
+    """df-samples.csv and force-points.csv (host.experiments.paper._save_columns): what a later
+    refit reads back, with the booleans and duties as numbers."""
+    from host.experiments.paper import _save_columns
+
+    cols = {"d_mm": np.array([-0.18447, 0.512, 0.3]), "loading": np.array([True, True, False]),
+            "duty": np.array([-625.0, 1250.0, 625.0])}
+    _save_columns(tmp_path / "points.csv", cols)
+    back = np.genfromtxt(tmp_path / "points.csv", delimiter=",", names=True)
+    assert back.dtype.names == ("d_mm", "loading", "duty")
+    assert np.allclose(back["d_mm"], cols["d_mm"]) and list(back["loading"]) == [1, 1, 0]
+    assert list(back["duty"]) == [-625, 1250, 625]
