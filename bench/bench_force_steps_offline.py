@@ -24,7 +24,8 @@ Call (from the repository root, the venv's python):
 paper's force runs hook it; the fibre is hooked from where the block is, as the virtual rig does):
 the same board at another block position, another realisation of the noise and the friction's
 stick states, to see how much a result moves;
---anchors UM,UM,... runs each seed at several and prints a tally over all (seed, anchor) cases.
+--anchors UM,UM,... runs each seed at several and prints a tally over all (seed, anchor) cases,
+and per seed the mean, spread and range of its worst step over the anchors.
 Diagnostics (each changes what is run, and says so in the tally line):
     --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280
     --oversample N       every board read N times a step (the run's own value is used otherwise)
@@ -295,6 +296,17 @@ def trace(runs, seed, side, exact, tmp):
     app.shutdown()
 
 
+def print_spread(per_seed):
+    """Per actuator, the worst step over its anchors: mean, standard deviation and range. Anchors
+    a few tens of um apart keep the pots' local error and change only the noise's realisation, so
+    the spread is the part of a verdict that chance decides (docs/robustness.md)."""
+    for seed, ws in per_seed.items():
+        mean = sum(ws) / len(ws)
+        sd = (sum((w - mean) ** 2 for w in ws) / len(ws)) ** 0.5
+        print("%-5s worst step over %d anchors: mean %.2f %%, sd %.2f %%, %.2f-%.2f %%, within 2 %% at %d"
+              % (seed, len(ws), mean, sd, min(ws), max(ws), sum(w <= 2.0 for w in ws)), flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("seeds", nargs="*", default=["1000", "1001", "1005", "1006", "1007", "sim"])
@@ -337,12 +349,16 @@ def main():
                     ident(a.runs, seed, tmp)
         else:
             worst = []
+            per_seed = {}
             for anchor in anchors:
                 ANCHOR[0] = anchor
                 for seed in a.seeds:
                     w = summary(a.runs, seed, a.exact, tmp)
                     if w is not None:
                         worst.append(w)
+                        per_seed.setdefault(seed, []).append(w)
+            if len(anchors) > 1:
+                print_spread(per_seed)
             if worst:
                 changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else [])
