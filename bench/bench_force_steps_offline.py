@@ -11,13 +11,15 @@ repository's boards/sim.json and RUNS/run-base/calibration.json (skipped if that
 With --refit the run's force sections are identified again by replaying the guided force step
 (refit_calibration: the run's pots and Df, the fit of today's code), so that a change to the
 force fit can be judged on the same actuators without a robustness run.
+With --trim the calibration's friction is first trimmed in closed loop, as the guided calibration
+does after the force step (trimmed_calibration, host/guided/friction_trim.py).
 With --exact the identified calibration is replaced by an exact model calibration of that board
 (testkit/model.py write_model_calibration): F0 tabled against the deformation the firmware
 measures (the pots' mount errors and the Df travel included, the block where the gauge holds it
 for that force) and the friction section equal to the board's true coulomb_n.
 
 Call (from the repository root, the venv's python):
-    python bench/bench_force_steps_offline.py [--runs DIR] [--exact | --refit] [--anchors UM,UM] [SEED ...]
+    python bench/bench_force_steps_offline.py [--runs DIR] [--exact | --refit] [--trim] [--anchors UM,UM] [SEED ...]
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
     python bench/bench_force_steps_offline.py [--runs DIR] --ident [--anchors UM,UM] [SEED ...]
 --anchor UM moves the gauge anchor (default 45000 um of D2, where the guided force step and the
@@ -162,6 +164,34 @@ def refit_calibration(board, cal, out_path):
     return out_path
 
 
+TRIM = {"on": False}  # --trim
+
+
+def trimmed_calibration(board, cal, out_path):
+    """The calibration with its friction trimmed in closed loop as the guided step does it after
+    the force step (host/guided/friction_trim.py): force-mode holds at the trim's targets for a
+    16 N range on both sides, at REFIT_ANCHOR, on a freshly started firmware each side."""
+    from host.calibration.file import friction_section, read_calibration, write_calibration
+    from host.guided.friction_trim import trim_magnitudes, trimmed_friction
+    from tests.sim.firmware_cases import case_force_steps_sim
+
+    doc = read_calibration(cal)
+    identified = doc["friction"]
+    magnitudes = trim_magnitudes(REFIT_RANGE_MN / 1000.0)
+    sides = []
+    for side, sign in SIDES:
+        rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=REFIT_ANCHOR,
+                                    board_path=board)
+        sides.append([(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)])
+    trim = trimmed_friction(identified["friction_n"], sides)
+    doc["friction"] = friction_section(trim.friction_n, identified.get("fit"), identified.get("feed_forward_duty", 0))
+    write_calibration(out_path, doc)
+    print("      trim: h %.3f -> %.3f N (estimate - load %+.0f mN loading, %+.0f unloading)%s" % (
+        identified["friction_n"], trim.friction_n, trim.loading_mn, trim.unloading_mn,
+        "; kept: " + trim.why if trim.why else ""), flush=True)
+    return out_path
+
+
 def calibration(runs, seed, exact, tmp):
     board, cal = paths(runs, seed)
     if not os.path.exists(board):
@@ -173,7 +203,10 @@ def calibration(runs, seed, exact, tmp):
         return board, None
     if REFIT["on"]:
         out = os.path.join(tmp, "refit-%s.json" % seed)
-        return board, out if os.path.exists(out) else refit_calibration(board, cal, out)
+        cal = out if os.path.exists(out) else refit_calibration(board, cal, out)
+    if TRIM["on"]:
+        out = os.path.join(tmp, "trim-%s.json" % seed)
+        cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out)
     return board, cal
 
 
@@ -316,6 +349,8 @@ def main():
     ap.add_argument("--trace", nargs=2, metavar=("SEED", "SIDE"), help="per-step extremes for one seed and side")
     ap.add_argument("--refit", action="store_true",
                     help="identify the force sections again by replaying the guided force step (the run's pots and Df kept)")
+    ap.add_argument("--trim", action="store_true",
+                    help="trim the calibration's friction in closed loop first, as the guided step does after the force step")
     ap.add_argument("--ident", action="store_true",
                     help="check F0 of both calibrations against a replay of the force identification")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
@@ -331,6 +366,7 @@ def main():
     except ValueError:
         sys.exit("--anchors wants um values separated by commas, e.g. 44000,45000,46000")
     REFIT["on"] = a.refit
+    TRIM["on"] = a.trim
     DIAG["oversample"] = a.oversample
     DIAG["noise"] = a.noise
     override_params(a.param)
@@ -362,8 +398,9 @@ def main():
             if worst:
                 changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else [])
-                print("tally (%s calibration%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
+                print("tally (%s calibration%s%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
                       "max %.2f %%" % ("exact" if a.exact else "re-identified" if a.refit else "identified",
+                                       ", friction trimmed" if a.trim else "",
                                        ", " + ", ".join(changed) if changed else "", sum(w <= 2.0 for w in worst),
                                        len(worst), sum(worst) / len(worst), max(worst)), flush=True)
 

@@ -70,6 +70,9 @@ def add_method_arguments(p):
                    "rig), the 0 mm side (low: positive forces), or one after the other (both, default)")
     p.add_argument("--no-friction", action="store_true", help="force: fit F0(d) without the output block's friction "
                    "term (the paper's model); by default the friction is identified and the firmware compensates it")
+    p.add_argument("--no-trim", action="store_true", help="force: keep the friction h the open-loop levels identified; by "
+                   "default force mode then holds a few targets against the gauge and trims h to what the running loop "
+                   "meets (the block follows the loop's small spring motions)")
 
 
 def add_gauge_arguments(p):
@@ -110,7 +113,7 @@ def method_options(args):
     return {"model": values["model"], "order": values["order"], "budget": args.budget,
             "df_order": order(str(values["df_order"]), "--df-order", 12),
             "force_order": order(str(values["force_order"]), "--force-order", 5),
-            "gauge_sides": values["gauge_sides"], "friction": not values["no_friction"]}
+            "gauge_sides": values["gauge_sides"], "friction": not values["no_friction"], "trim": not args.no_trim}
 
 
 def options_from(args):

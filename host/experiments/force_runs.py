@@ -17,8 +17,8 @@ against the tare interpolated to its time (the gauge's zero drifts). The steps s
 import numpy as np
 
 from host.guided import acquire
-from host.guided.force_calibration import SIDES, GaugeOnSide
-from host.guided.prompts import end_progress, progress_line
+from host.guided.force_calibration import SIDES
+from host.guided.friction_trim import hold_sequence
 
 STEPS_N = (5.0, 10.0, 15.0, 10.0, 5.0)  # magnitudes: loading, then unloading
 
@@ -38,44 +38,9 @@ def blocking_run(session, rig, target_n, seconds=4.0):
     return {"t": t, "d2": d2, "final": final, "target_n": target_n}
 
 
-def _hold(client, gauge, target_n, settle_s, measure_s):
-    """Force mode at `target_n`: settle, log, record the gauge; the firmware's mean estimate."""
-    client.call("target", int(round(target_n * 1000)))
-    acquire.collect(client, settle_s)
-    rec = acquire.collect(client, measure_s)
-    gauge.record(rec)
-    return acquire.mean(rec, "force_mN") / 1000.0
-
-
-PRELOAD_N = 0.5
-
-
-def _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, measure_s, label, preload=False):
-    """Force targets in turn against the gauge on `side`, hooked with the fibre just slack (0.2 mm)
-    and tared before and after (the zero drifts): (targets, gauge forces, firmware estimates).
-    With `preload`, a PRELOAD_N hold first takes up the fibre's slack, as on a bench before a
-    measurement: the first step then starts from a taut fibre, not from a block that hits it."""
-    client = session.client
-    gauge = GaugeOnSide(session, rig, prompter, anchor_mm, side, gap_mm=0.2)
-    gauge.tare()
-    acquire.reset(client)
-    client.call("mode", "force")
-    if preload:
-        client.call("target", int(SIDES[side] * PRELOAD_N * 1000))
-        acquire.collect(client, 0.5)
-    estimates = []
-    for target in targets:
-        estimates.append(_hold(client, gauge, target, settle_s, measure_s))
-        progress_line("  %s: target %+.1f N, estimate %+.2f N" % (label, target, estimates[-1]))
-    end_progress()
-    gauge.tare(move=True)
-    client.call("stop")
-    return targets, gauge.forces(), estimates
-
-
 def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
     targets = [-float(t) for t in np.arange(0.0, top_n + 1e-9, step_n)]
-    targets, measured, estimates = _sequence(session, rig, prompter, anchor_mm, "high", targets, settle_s, 0.2, "dead zone")
+    targets, measured, estimates = hold_sequence(session, rig, prompter, anchor_mm, "high", targets, settle_s, 0.2, "dead zone")
     rows = [{"target": t, "measured": float(m), "estimate": e} for t, m, e in zip(targets, measured, estimates)]
     dz = max([abs(r["target"]) for r in rows if abs(r["measured"]) < 0.5 * abs(r["target"])] or [0.0])
     return rows, dz
@@ -84,7 +49,7 @@ def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s
 def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5):
     """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it)."""
     targets = [SIDES[side] * m for m in magnitudes]
-    _, measured, estimates = _sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
+    _, measured, estimates = hold_sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
                                        "%s-side steps" % side, preload=True)
     rows = []
     peak = 0.0

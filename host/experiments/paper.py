@@ -15,6 +15,7 @@ from pathlib import Path
 from host.experiments import displacement, force_runs, model_compare, report, variants
 from host.guided.flow import BRINGUP, STEPS, run_steps
 from host.guided.force_calibration import gauge_sides
+from host.guided.friction_trim import PRELOAD_N
 
 
 def _save_sweep(path, data):
@@ -126,7 +127,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     progress = Progress(out_dir, results)
     block = (session.board.get("actuator") or {}).get("block") or {}
     results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
-    results["preload_n"] = force_runs.PRELOAD_N
+    results["preload_n"] = PRELOAD_N
     results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]
     from host.fitting.pot_fit import DEFAULT_ORDER
 

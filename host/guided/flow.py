@@ -50,6 +50,7 @@ class Options:
     force_order: object = "auto"
     gauge_sides: str = "both"  # "high" (the paper's rig), "low" or "both"
     friction: bool = True
+    trim: bool = True  # force: trim h in closed loop once the force calibration is on the board (friction_trim.py)
     anchor_mm: float = 45.0
     rounds: int = 2
     levels: int = 8
@@ -99,6 +100,46 @@ def run_bringup(session, rig, prompter, opts, alone, log=None):
         raise StepRefused("bringup found %d problem(s): fix them (see above) and run host calibrate bringup again"
                         % len(outcome.sections["bringup"]["problems"]))
     return outcome
+
+
+def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
+    """The accepted force step's friction trimmed in closed loop (host/guided/friction_trim.py):
+    the friction section rewritten and flashed again, the lines added to the step's. The
+    identified calibration is already written and on the board, so a trim that cannot be done
+    leaves it as it is and says why."""
+    from host.calibration.file import friction_section
+    from host.guided.friction_trim import trim_friction
+
+    identified = (outcome.sections.get("friction") or {})
+    if not (opts.trim and opts.friction and identified.get("friction_n", 0) > 0):
+        return
+    if not opts.flash:
+        outcome.lines.append("force: friction not trimmed (--no-flash: force mode needs the calibration on the board)")
+        prompter.say("  " + outcome.lines[-1])
+        return
+    prompter.say("[force] friction trim: force-mode holds against the gauge, the estimate compared with it")
+    try:
+        trim = trim_friction(session, rig, prompter, opts, outcome.data)
+    except UserError as exc:
+        outcome.lines.append("force: friction not trimmed (%s); h stays %.3f N as identified" % (exc, identified["friction_n"]))
+        prompter.say("  " + outcome.lines[-1])
+        return
+    h = identified["friction_n"]
+    if trim.why:
+        line = "force: friction not trimmed (%s); h stays %.3f N as identified" % (trim.why, h)
+    else:
+        line = ("force: friction trimmed in closed loop to h = %.3f N (identified %.3f): over %d holds the estimate "
+                "minus the gauge was %+.0f mN loading, %+.0f mN unloading" % (trim.friction_n, h, trim.holds,
+                                                                              trim.loading_mn, trim.unloading_mn))
+        stats = dict(identified.get("fit") or {}, identified_n=h, trim_loading_mn=trim.loading_mn,
+                     trim_unloading_mn=trim.unloading_mn, trim_holds=trim.holds)
+        section = friction_section(trim.friction_n, stats, ff_duty=identified.get("feed_forward_duty", 0))
+        update_section(path, "friction", section, board=board_name)
+        outcome.sections["friction"] = section
+        outcome.data["friction_n"] = trim.friction_n
+        session.flash(path)
+    outcome.lines.append(line)
+    prompter.say("  " + line)
 
 
 def run_steps(session, rig, prompter, steps, opts, log=None):
@@ -201,6 +242,8 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         prompter.say("  wrote %s to %s" % (", ".join(outcome.sections), path))
         if opts.flash:
             session.flash(path)
+        if step == "force":
+            _trim_friction(session, rig, prompter, opts, outcome, path, board_name)
         accepted[step] = outcome
         if log:
             log.done(outcome, accepted=True)

@@ -45,7 +45,11 @@ def test_every_step_is_accepted_written_and_verified(full_run):
         assert doc[pot]["model"] in ("bcm", "pwl") and doc[pot]["fit"]["rms"] < 0.05, doc[pot]["fit"]
     assert doc["df"]["fit"]["order"] >= 4  # the paper's quartic, or higher by cross-validation
     crcs = [int(m.group(1), 16) for m in map(re.compile(r"firmware runs calibration crc ([0-9a-f]{8})").search, said) if m]
-    assert len(crcs) == 3 and len(set(crcs)) == 3  # one flash per step, each a new file
+    # one flash per step, each a new file, and one more after the force step's friction trim
+    assert len(crcs) == 4 and len(set(crcs)) == 4, crcs
+    trim = doc["friction"]["fit"]
+    assert trim["trim_holds"] >= 8 and abs(doc["friction"]["friction_n"] - trim["identified_n"]) < 0.5 * trim["identified_n"]
+    assert any("friction trimmed in closed loop" in line for line in said)
     assert crcs[-1] == json.loads(out.read_text())["crc32"]
     for png in ("calibration-pot1.png", "calibration-pot2.png", "calibration-df.png", "calibration-force.png"):
         assert (out.parent / png).stat().st_size > 10000

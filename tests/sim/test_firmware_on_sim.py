@@ -213,3 +213,25 @@ def test_force_mode_meets_a_slack_load_without_slamming_the_spring(cal_path):
         here = on_cpython(call)
         assert here == on_micropython(call)
         assert here["spring_peak_mN"] <= 5000 + 300 + 500, (side, here)
+
+
+def test_friction_trim_brings_a_wrong_h_back_to_what_the_loop_meets(tmp_path):
+    """The friction trim (host/guided/friction_trim.py) on the simulated actuator: the model's
+    exact F0 with the block's friction (0.30 N in boards/sim.json) given as 0.45 N or 0.18 N.
+    Force-mode holds at the trim's targets on both gauge sides (the real firmware against the
+    simulated block and gauge), then the trim: both land within 60 mN of the simulated Coulomb
+    friction, where they started 150 and 120 mN off."""
+    from host.guided.friction_trim import SIDES, trim_magnitudes, trimmed_friction
+
+    true_h = model.sim_board()["actuator"]["block"]["coulomb_n"]
+    magnitudes = trim_magnitudes(16.0)
+    for wrong in (0.45, 0.18):
+        path = tmp_path / ("h%d.json" % round(wrong * 1000))
+        model.write_model_calibration(path, friction={"kind": "friction", "fixed": [round(wrong * 1000)]})
+        sides = []
+        for side in ("high", "low"):
+            sign = SIDES[side]
+            rows = on_cpython("case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * round(m * 1000) for m in magnitudes]))
+            sides.append([(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)])
+        trim = trimmed_friction(wrong, sides)
+        assert not trim.why and abs(trim.friction_n - true_h) < 0.06, (wrong, trim)
