@@ -12,7 +12,7 @@ from boards.sim.actuator import Actuator
 from firmware.calibration import CalibrationError, poly_constants
 from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 from host.calibration.file import force_table_section
-from host.fitting.force import fit_force, inside_band, spring_like
+from host.fitting.force import fit_force, inside_band, knots_spaced, level_spacing, spring_like
 from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
 
 
@@ -127,6 +127,37 @@ def test_a_table_flat_between_two_knots_is_not_a_spring():
     lift_off = ([-1.0, 0.0, 0.5, 1.0], [-17.0, 0.0, 8.5, 12.75])  # 17 N/mm, halving past 0.5 mm
     assert spring_like(*(np.array(v) for v in lift_off))
     assert not spring_like(np.array([0.0, 1.0, 2.0]), np.array([0.0, 5.0, 4.0]))  # falls
+
+
+def test_a_table_that_dips_between_two_levels_is_not_a_spring():
+    """Seed 1006's run table in robustness run robK (3.6 N levels, 0.22 mm apart): two knots 58 um
+    apart around one level, 3.8 N/mm between them and 16-19 N/mm on both sides; it read 0.4 N high
+    at 10 N. It passes the 5x spread (4.9x), not the dip rule; a lift-off's halving does."""
+    dip = ([-1.078, -0.709, -0.448, 0.341, 0.610, 0.668, 1.103], [-18.07, -11.61, -7.24, 5.61, 10.66, 10.88, 18.07])
+    assert not spring_like(*(np.array(v) for v in dip))
+    lift_off = ([-1.0, 0.0, 0.5, 1.0, 1.5], [-17.0, 0.0, 8.5, 12.75, 17.0])
+    assert spring_like(*(np.array(v) for v in lift_off))
+
+
+def test_no_two_knots_share_a_gap_between_levels():
+    """A strong motor's levels (5 a side, 0.22 mm apart, every round and both directions on the
+    same deformations): two knots between two neighbouring levels leave the table's shape there
+    to the noise. Evenly spread knots pass; a pair 58 um apart does not; and the fit of such
+    points keeps F0 within the gauge's noise between the levels."""
+    levels = np.concatenate([np.arange(-5, 0), np.arange(1, 6)]) * 0.22
+    rng = np.random.default_rng(3)
+    d = np.repeat(levels, 4) + rng.normal(0, 0.002, 4 * len(levels))
+    assert abs(level_spacing(d) - 0.22) < 0.01
+    assert knots_spaced(np.array([-1.1, -0.5, 0.0, 0.5, 1.1]), d)
+    assert not knots_spaced(np.array([-1.1, -0.5, 0.61, 0.668, 1.1]), d)
+    f0 = lambda x: 16.5 * x + 0.9 * x * np.abs(x)  # noqa: E731
+    s = np.tile([1.0, 1.0, -1.0, -1.0], len(levels)) * -np.sign(np.repeat(levels, 4))
+    f = f0(d) + 0.54 * s + rng.normal(0, 0.015, len(d))
+    fit = fit_force(d, f, s)
+    if fit.kind == "pwl":
+        assert knots_spaced(fit.knots_d, d), fit.knots_d
+    grid = np.linspace(-1.1, 1.1, 221)
+    assert np.max(np.abs(fit.f0(grid) - f0(grid))) < 0.1, fit.kind
 
 
 @pytest.mark.parametrize("bad", [
