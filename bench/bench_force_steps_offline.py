@@ -164,31 +164,33 @@ def refit_calibration(board, cal, out_path):
     return out_path
 
 
-TRIM = {"on": False}  # --trim
+TRIM = {"on": False, "f0": True}  # --trim, --no-f0
 
 
 def trimmed_calibration(board, cal, out_path):
     """The calibration with its friction trimmed in closed loop as the guided step does it after
     the force step (host/guided/friction_trim.py): force-mode holds at the trim's targets for a
     16 N range on both sides, at REFIT_ANCHOR, on a freshly started firmware each side."""
-    from host.calibration.file import friction_section, read_calibration, write_calibration
-    from host.guided.friction_trim import trim_magnitudes, trimmed_friction
+    from host.calibration.file import read_calibration, write_calibration
+    from host.guided.friction_trim import trim_magnitudes, trimmed_friction, trimmed_sections
     from tests.sim.firmware_cases import case_force_steps_sim
 
     doc = read_calibration(cal)
     identified = doc["friction"]
     magnitudes = trim_magnitudes(REFIT_RANGE_MN / 1000.0)
-    sides = []
+    sides = {}
     for side, sign in SIDES:
         rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=REFIT_ANCHOR,
                                     board_path=board)
-        sides.append([(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)])
+        sides[sign] = [(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)]
     trim = trimmed_friction(identified["friction_n"], sides)
-    doc["friction"] = friction_section(trim.friction_n, identified.get("fit"), identified.get("feed_forward_duty", 0))
+    if not TRIM["f0"]:
+        trim.f0.why = "--no-f0"
+    sections, lines = trimmed_sections(doc, trim, (-REFIT_RANGE_MN / 1000.0, REFIT_RANGE_MN / 1000.0))
+    doc.update(sections)
     write_calibration(out_path, doc)
-    print("      trim: h %.3f -> %.3f N (estimate - load %+.0f mN loading, %+.0f unloading)%s" % (
-        identified["friction_n"], trim.friction_n, trim.loading_mn, trim.unloading_mn,
-        "; kept: " + trim.why if trim.why else ""), flush=True)
+    for line in lines:
+        print("      trim: " + line, flush=True)
     return out_path
 
 
@@ -351,6 +353,7 @@ def main():
                     help="identify the force sections again by replaying the guided force step (the run's pots and Df kept)")
     ap.add_argument("--trim", action="store_true",
                     help="trim the calibration's friction in closed loop first, as the guided step does after the force step")
+    ap.add_argument("--no-f0", action="store_true", help="with --trim: trim h only, leave F0 as identified")
     ap.add_argument("--ident", action="store_true",
                     help="check F0 of both calibrations against a replay of the force identification")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
@@ -367,6 +370,7 @@ def main():
         sys.exit("--anchors wants um values separated by commas, e.g. 44000,45000,46000")
     REFIT["on"] = a.refit
     TRIM["on"] = a.trim
+    TRIM["f0"] = not a.no_f0
     DIAG["oversample"] = a.oversample
     DIAG["noise"] = a.noise
     override_params(a.param)

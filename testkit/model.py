@@ -30,6 +30,12 @@ def _world(board, seed):
     return Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), seed)
 
 
+def spring_forces(board, d_mm):
+    """The simulated spring pair's force (N) at deformations `d_mm`."""
+    world = _world(board, 1)
+    return np.array([world.spring_force(v) for v in np.asarray(d_mm, dtype=float)])
+
+
 def model_sections(board=None, n_points=61, feed_forward=False):
     """The sections pot1, pot2 (pwl tables), df, force, force_inverse and friction, each
     {"kind", "fixed"} as the firmware reads them; with `feed_forward` the friction section also

@@ -103,12 +103,12 @@ def run_bringup(session, rig, prompter, opts, alone, log=None):
 
 
 def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
-    """The accepted force step's friction trimmed in closed loop (host/guided/friction_trim.py):
-    the friction section rewritten and flashed again, the lines added to the step's. The
-    identified calibration is already written and on the board, so a trim that cannot be done
-    leaves it as it is and says why."""
-    from host.calibration.file import friction_section
-    from host.guided.friction_trim import trim_friction
+    """The accepted force step trimmed in closed loop (host/guided/friction_trim.py): its friction,
+    then F0 by what the holds leave (host/fitting/force_correction.py); the sections rewritten and
+    flashed again, the lines added to the step's. The identified calibration is already written
+    and on the board, so a trim that cannot be done leaves it as it is and says why."""
+    from host.calibration.file import now_iso
+    from host.guided.friction_trim import trim_friction, trimmed_sections
 
     identified = (outcome.sections.get("friction") or {})
     if not (opts.trim and opts.friction and identified.get("friction_n", 0) > 0):
@@ -124,22 +124,20 @@ def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
         outcome.lines.append("force: friction not trimmed (%s); h stays %.3f N as identified" % (exc, identified["friction_n"]))
         prompter.say("  " + outcome.lines[-1])
         return
-    h = identified["friction_n"]
-    if trim.why:
-        line = "force: friction not trimmed (%s); h stays %.3f N as identified" % (trim.why, h)
-    else:
-        line = ("force: friction trimmed in closed loop to h = %.3f N (identified %.3f): over %d holds the estimate "
-                "minus the gauge was %+.0f mN loading, %+.0f mN unloading" % (trim.friction_n, h, trim.holds,
-                                                                              trim.loading_mn, trim.unloading_mn))
-        stats = dict(identified.get("fit") or {}, identified_n=h, trim_loading_mn=trim.loading_mn,
-                     trim_unloading_mn=trim.unloading_mn, trim_holds=trim.holds)
-        section = friction_section(trim.friction_n, stats, ff_duty=identified.get("feed_forward_duty", 0))
-        update_section(path, "friction", section, board=board_name)
-        outcome.sections["friction"] = section
+    force_n = outcome.data["force_n"]
+    doc = read_calibration(path)
+    sections, lines = trimmed_sections(doc, trim, (min(0.0, float(min(force_n))), max(0.0, float(max(force_n)))))
+    if sections:  # one write: F0 and its inverse must not disagree on the board
+        doc.update(sections, date=now_iso())
+        if board_name is not None:
+            doc["board"] = board_name
+        write_calibration(path, doc)
+        outcome.sections.update(sections)
         outcome.data["friction_n"] = trim.friction_n
         session.flash(path)
-    outcome.lines.append(line)
-    prompter.say("  " + line)
+    for line in lines:
+        outcome.lines.append(line)
+        prompter.say("  " + line)
 
 
 def run_steps(session, rig, prompter, steps, opts, log=None):

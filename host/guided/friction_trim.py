@@ -1,4 +1,5 @@
-"""The friction trim: the block's friction h as the running force loop meets it, after the force step.
+"""The closed-loop trim after the force step: the block's friction h, then F0, as the running force
+loop meets them.
 
 The force step identifies F0(d) and h from open-loop duty levels: the motor stalls against the
 fibre, the spring stands still, and the block comes to rest with its friction against it. Force
@@ -15,17 +16,21 @@ side the block last slid to), and an error in F0 is the same in both, so
 
     h_trimmed = h + (mean(estimate - gauge | loading) - mean(estimate - gauge | unloading)) / 2
 
-in force magnitudes. The holds also serve host/experiments/force_runs.py (hold_sequence).
+in force magnitudes, over the targets held both ways. What is then left of estimate - gauge is
+F0's error at each target, which host/fitting/force_correction.py takes out of F0 (trimmed_sections
+writes both). The holds also serve host/experiments/force_runs.py (hold_sequence).
 """
 
 from dataclasses import dataclass
 
+from host.errors import UserError
+from host.fitting.force_correction import F0Correction, common_errors, corrected_f0_table, deformation_span, f0_correction
 from host.guided import acquire
 from host.guided.force_calibration import SIDES, TAUT_N, GaugeOnSide
 from host.guided.prompts import end_progress, progress_line
 
 PRELOAD_N = 0.5  # takes up the fibre's slack before the first target
-TRIM_FRACTIONS = (0.25, 0.5, 0.75, 0.5, 0.25)  # of a side's identified force range: loading, then unloading
+TRIM_FRACTIONS = (0.3, 0.6, 0.9, 0.6, 0.3)  # of a side's identified force range: loading, then unloading; spread over it for F0
 TRIM_SETTLE_S, TRIM_MEASURE_S = 1.5, 0.5  # as the paper's force steps hold each target
 TRIM_LIMIT = (0.5, 0.2)  # a trim that moves h by more than this fraction of it and more than this many N is not trusted
 
@@ -70,38 +75,60 @@ def trim_magnitudes(range_n):
 @dataclass
 class Trim:
     friction_n: float  # the trimmed h (the identified one when `why` says it was not trimmed)
-    loading_mn: float  # mean estimate - gauge while loading, mN (force magnitudes)
+    loading_mn: float  # mean estimate - gauge while loading, mN (force magnitudes), at the targets held both ways
     unloading_mn: float  # ... while unloading
     holds: int  # holds used (taut fibre)
     why: str = ""  # why h was kept, else empty
+    f0: F0Correction = None  # F0's error left once h is trimmed (host/fitting/force_correction.py)
+
+
+def taut_holds(rows):
+    """The rows (target magnitude, estimate magnitude, gauge magnitude) of one side, in the order
+    held after the preload, with a slack fibre's left out (they say nothing) and whether each
+    loads (its target is above the one before): [(target, estimate, gauge, loading)]."""
+    out, previous = [], PRELOAD_N
+    for target, estimate, gauge in rows:
+        if gauge > TAUT_N:
+            out.append((target, estimate, gauge, target > previous))
+        previous = target
+    return out
+
+
+def paired_errors(rows):
+    """[(mean estimate - gauge loading, ... unloading)] in mN, one pair per target magnitude held
+    both ways (taut_holds rows): an F0 error that grows with the force is the same in both."""
+    by_target = {}
+    for target, estimate, gauge, loading in rows:
+        by_target.setdefault(round(target, 3), ([], []))[0 if loading else 1].append(1000.0 * (estimate - gauge))
+    return [(sum(u) / len(u), sum(d) / len(d)) for u, d in by_target.values() if u and d]
 
 
 def trimmed_friction(friction_n, sides):
-    """The Trim of h (N) from the holds of each side, `sides`: per side, rows (target magnitude N,
-    estimate magnitude N, gauge magnitude N) in the order held after the preload. A hold loads
-    when its target is above the one before. Holds with a slack fibre say nothing: left out."""
-    up, down = [], []
-    for rows in sides:
-        previous = PRELOAD_N
-        for target, estimate, gauge in rows:
-            if gauge > TAUT_N:
-                (up if target > previous else down).append(1000.0 * (estimate - gauge))
-            previous = target
-    n = len(up) + len(down)
-    if not up or not down:
-        return Trim(friction_n, float("nan"), float("nan"), n, "no loading or no unloading hold with a taut fibre")
-    mu, md = sum(up) / len(up), sum(down) / len(down)
+    """The Trim of h (N) from the holds of each side, `sides`: {side sign: rows as taut_holds
+    takes them}. Only targets held both loading and unloading count: the top one, held loading
+    only, would mix F0's error there into h. With h trimmed, the F0 error the holds leave is in
+    Trim.f0."""
+    taut = {sign: taut_holds(rows) for sign, rows in sides.items()}
+    pairs = [p for rows in taut.values() for p in paired_errors(rows)]
+    n = sum(len(rows) for rows in taut.values())
+    if not pairs:
+        return Trim(friction_n, float("nan"), float("nan"), n, "no target held both loading and unloading with a taut fibre",
+                    F0Correction(why="h was not trimmed"))
+    mu, md = (sum(p[i] for p in pairs) / len(pairs) for i in (0, 1))
     trimmed = friction_n + (mu - md) / 2000.0
     if abs(trimmed - friction_n) > max(TRIM_LIMIT[0] * friction_n, TRIM_LIMIT[1]):
         return Trim(friction_n, mu, md, n, "the trim would move h by %+.0f mN, more than %d %% of it and %.0f mN" % (
-            trimmed * 1000 - friction_n * 1000, 100 * TRIM_LIMIT[0], 1000 * TRIM_LIMIT[1]))
-    return Trim(max(0.0, trimmed), mu, md, n)
+            trimmed * 1000 - friction_n * 1000, 100 * TRIM_LIMIT[0], 1000 * TRIM_LIMIT[1]),
+            F0Correction(why="h was not trimmed"))
+    trimmed = max(0.0, trimmed)
+    f0 = f0_correction({sign: common_errors(rows, trimmed - friction_n) for sign, rows in taut.items()})
+    return Trim(trimmed, mu, md, n, f0=f0)
 
 
 def trim_friction(session, rig, prompter, opts, data):
     """Force-mode holds on each side the force step used (`data`: its StepOutcome.data), with the
     force calibration on the board: the Trim of its friction h."""
-    sides = []
+    sides = {}
     for side in data["sides"]:
         sign = SIDES[side]
         reached = max([sign * f for f in data["force_n"] if sign * f > 0] or [0.0])
@@ -111,6 +138,41 @@ def trim_friction(session, rig, prompter, opts, data):
         _, measured, estimates = hold_sequence(session, rig, prompter, opts.anchor_mm, side,
                                                [sign * m for m in magnitudes], TRIM_SETTLE_S, TRIM_MEASURE_S,
                                                "friction trim, %s side" % side, preload=True)
-        sides.append([(m, sign * e, sign * float(g)) for m, e, g in zip(magnitudes, estimates, measured)])
+        sides[sign] = [(m, sign * e, sign * float(g)) for m, e, g in zip(magnitudes, estimates, measured)]
     rig.no_load()
     return trimmed_friction(data["friction_n"], sides)
+
+
+def trimmed_sections(doc, trim, force_span_n):
+    """The calibration sections a Trim rewrites in `doc` (a calibration document with the force
+    step's sections): friction, and force and force_inverse when F0 is corrected over the forces
+    the force step reached (`force_span_n`, signed lo, hi). With the lines that say what was done."""
+    from host.calibration.file import force_table_section, friction_section
+    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+
+    identified = doc["friction"]
+    h = identified["friction_n"]
+    if trim.why:
+        return {}, ["force: friction not trimmed (%s); h stays %.3f N as identified" % (trim.why, h)]
+    stats = dict(identified.get("fit") or {}, identified_n=h, trim_loading_mn=trim.loading_mn,
+                 trim_unloading_mn=trim.unloading_mn, trim_holds=trim.holds)
+    sections = {"friction": friction_section(trim.friction_n, stats, ff_duty=identified.get("feed_forward_duty", 0))}
+    lines = ["force: friction trimmed in closed loop to h = %.3f N (identified %.3f): over %d holds the estimate "
+             "minus the gauge was %+.0f mN loading, %+.0f mN unloading" % (trim.friction_n, h, trim.holds,
+                                                                           trim.loading_mn, trim.unloading_mn)]
+    errors = "; ".join("%+.1f N: %+.0f mN" % (sign * m, 1000 * c) for sign, rows in sorted(trim.f0.errors.items())
+                       for m, c in rows)
+    if trim.f0.why:
+        return sections, lines + ["force: F0 not corrected (%s)%s" % (trim.f0.why, "; errors " + errors if errors else "")]
+    force = doc["force"]
+    try:
+        span = deformation_span(force, force_span_n[0], force_span_n[1], D_RANGE_MM)
+        kd, kf = corrected_f0_table(force, span, trim.f0, D_RANGE_MM)
+        stats_f = dict(force.get("fit") or {}, corrected_from=force["kind"], correction_mn=errors)
+        sections["force"] = force_table_section(kd, kf, D_RANGE_MM, ("um", "mN"), stats_f)
+        sections["force_inverse"] = force_table_section(kf, kd, F_RANGE_N, ("mN", "um"),
+                                                        dict(doc["force_inverse"].get("fit") or {}, corrected=True))
+    except (ValueError, UserError) as exc:
+        return sections, lines + ["force: F0 not corrected (%s)" % exc]
+    return sections, lines + ["force: F0 corrected in closed loop (estimate - gauge common to loading and unloading, "
+                              "once h is trimmed: %s), now a %d-knot table" % (errors, len(kd))]

@@ -228,10 +228,53 @@ def test_friction_trim_brings_a_wrong_h_back_to_what_the_loop_meets(tmp_path):
     for wrong in (0.45, 0.18):
         path = tmp_path / ("h%d.json" % round(wrong * 1000))
         model.write_model_calibration(path, friction={"kind": "friction", "fixed": [round(wrong * 1000)]})
-        sides = []
-        for side in ("high", "low"):
-            sign = SIDES[side]
-            rows = on_cpython("case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * round(m * 1000) for m in magnitudes]))
-            sides.append([(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)])
-        trim = trimmed_friction(wrong, sides)
+        trim = trimmed_friction(wrong, _trim_holds(path, magnitudes, SIDES))
         assert not trim.why and abs(trim.friction_n - true_h) < 0.06, (wrong, trim)
+
+
+def _trim_holds(path, magnitudes, sides):
+    """The friction trim's holds on both gauge sides, as trimmed_friction takes them."""
+    out = {}
+    for side in ("high", "low"):
+        sign = sides[side]
+        rows = on_cpython("case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * round(m * 1000) for m in magnitudes]))
+        out[sign] = [(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)]
+    return out
+
+
+def _worst_step_error(path, side, sign):
+    """The paper's force steps (5, 10, 15, 10, 5 N) on `side`: the largest |load - target| / target."""
+    rows = on_cpython("case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * t for t in (5000, 10000, 15000, 10000, 5000)]))
+    return max(abs(load - target) / abs(target) for target, _, load in rows)
+
+
+def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
+    """The closed-loop F0 correction (host/fitting/force_correction.py) on the simulated actuator:
+    the force sections a table of the model's spring scaled by 1.03, the true h. The loop then holds
+    the load 3 % short of every target (checked on one side). The trim's holds measure that error
+    (+144 mN at 4.8 N, ...), the trim writes the corrected F0 table and its inverse, and the same
+    force steps then meet 1.5 % on both sides."""
+    from host.calibration.file import force_table_section, read_calibration, write_calibration
+    from host.guided.friction_trim import SIDES, trim_magnitudes, trimmed_friction, trimmed_sections
+
+    board = model.sim_board()
+    true_h = board["actuator"]["block"]["coulomb_n"]
+    cav = float(board["actuator"]["springs"]["cavity_mm"])
+    d = np.linspace(-cav, cav, 41)
+    f = 1.03 * model.spring_forces(board, d)
+    path = tmp_path / "stiff.json"
+    model.write_model_calibration(
+        path, force=force_table_section(d, f, (-cav, cav), ("um", "mN")),
+        force_inverse=force_table_section(f, d, (-25.0, 25.0), ("mN", "um")),
+        friction={"kind": "friction", "friction_n": true_h, "fit": {}, "fixed": [round(true_h * 1000)]})
+    before = _worst_step_error(path, "low", SIDES["low"])
+    assert before > 0.025, before
+    trim = trimmed_friction(true_h, _trim_holds(path, trim_magnitudes(16.0), SIDES))
+    assert not trim.f0.why and all(0.01 < c / m < 0.05 for rows in trim.f0.errors.values() for m, c in rows), trim
+    doc = read_calibration(path)
+    sections, lines = trimmed_sections(doc, trim, (-16.0, 16.0))
+    assert set(sections) == {"friction", "force", "force_inverse"}, lines
+    doc.update(sections)
+    write_calibration(path, doc)
+    after = {side: _worst_step_error(path, side, sign) for side, sign in SIDES.items()}
+    assert max(after.values()) < 0.015, (before, after, lines)

@@ -1,0 +1,123 @@
+"""The closed-loop correction of F0(d): the spring-force error the force loop's holds measure.
+
+The force step fits F0(d) to open-loop duty levels, a few deformations per side, and a
+polynomial or a table of few knots carries tens of mN of error between them (up to 0.1-0.25 N
+on some of the simulated actuators of docs/robustness.md, 1-2 % of a 5 N step on a 2 % target).
+The friction trim's holds (host/guided/friction_trim.py) compare the running estimate with the
+gauge at a few forces on each side. Once h is trimmed, what is left of estimate - gauge is the
+same while loading and unloading: that is F0's error at that force, `c(F)` (force magnitudes).
+
+The corrected F0 is a table that follows F0 - c within TABLE_TOL_N, c taken on each side as a
+line from 0 at zero force through the holds' errors and flat beyond the last one. Its inverse is the same knots swapped, so F0 and d(F0) still agree.
+An error larger than CORRECTION_LIMIT says a hold went wrong (a slipping fibre, a drifting gauge),
+not a fit: the correction is then refused and F0 kept.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from host.fitting.force import table_value
+
+TABLE_TOL_N = 0.002  # the table follows the old F0 this closely before it is corrected
+CORRECTION_LIMIT = (0.05, 0.2)  # an error beyond this fraction of its force and this many N is not trusted
+MARGIN_MM = 0.1  # the table's knots reach this far past the deformations the force step measured
+
+
+@dataclass
+class F0Correction:
+    errors: dict = field(default_factory=dict)  # side sign (+1, -1) -> [(force magnitude N, error N)], ascending
+    why: str = ""  # why F0 is kept as it is, else empty
+
+    def at(self, force_n):
+        """The error c of the estimate at spring forces `force_n` (signed, N), in the forces' own sign."""
+        force_n = np.asarray(force_n, dtype=float)
+        out = np.zeros_like(force_n)
+        for sign, rows in self.errors.items():
+            if not rows:
+                continue
+            m = np.array([0.0] + [r[0] for r in rows])
+            c = np.array([0.0] + [r[1] for r in rows])
+            on_side = np.sign(force_n) == sign
+            out[on_side] = sign * np.interp(sign * force_n[on_side], m, c)
+        return out
+
+
+def f0_function(section):
+    """F0 (N of mm) of a calibration's `force` section, poly or table, as the firmware evaluates it
+    within the deformations calibrated (a table goes on straight past its end knots)."""
+    if section["kind"] == "pwl":
+        kx, ky = np.asarray(section["knots_in"]), np.asarray(section["knots_out"])
+        return lambda d: table_value(np.asarray(d, dtype=float), kx, ky)
+    coeffs = np.asarray(section["coefficients"])
+    return lambda d: np.polyval(coeffs, np.asarray(d, dtype=float))
+
+
+def common_errors(rows, friction_change_n):
+    """F0's error on one side from its holds, `rows` (target magnitude N, estimate magnitude N,
+    gauge magnitude N, loading: bool), taut only, once h has moved by `friction_change_n` (a larger
+    h lowers a loading estimate and raises an unloading one): [(magnitude, mean error N)]."""
+    by_target = {}
+    for target, estimate, gauge, loading in rows:
+        error = estimate - gauge + (-friction_change_n if loading else friction_change_n)
+        by_target.setdefault(round(target, 3), []).append(error)
+    return [(m, float(np.mean(v))) for m, v in sorted(by_target.items())]
+
+
+def f0_correction(errors):
+    """The F0Correction of the errors per side ({sign: common_errors(...)}), or why it is refused."""
+    for sign, rows in errors.items():
+        for m, c in rows:
+            if abs(c) > max(CORRECTION_LIMIT[0] * m, CORRECTION_LIMIT[1]):
+                return F0Correction(errors, "F0 would move by %+.0f mN at %.1f N, more than %d %% of it and %.0f mN" % (
+                    1000 * c, sign * m, 100 * CORRECTION_LIMIT[0], 1000 * CORRECTION_LIMIT[1]))
+    if not any(errors.values()):
+        return F0Correction(errors, "no hold with a taut fibre")
+    return F0Correction(errors)
+
+
+def table_knots(g, d_lo, d_hi, keep=()):
+    """Deformation knots (mm) over d_lo..d_hi, with `keep` (kinks: an old table's knots, where the
+    correction turns): a knot is added where the line between them strays most from g until it
+    stays within TABLE_TOL_N everywhere (few knots where F0 is straight, more where it bends)."""
+    dense = np.linspace(d_lo, d_hi, 2001)
+    want = g(dense)
+    kx = np.union1d([d_lo, d_hi], [k for k in keep if d_lo < k < d_hi])
+    while len(kx) < len(dense):
+        miss = np.abs(np.interp(dense, kx, g(kx)) - want)
+        worst = int(np.argmax(miss))
+        if miss[worst] <= TABLE_TOL_N:
+            break
+        kx = np.union1d(kx, [dense[worst]])
+    return kx
+
+
+def deformation_span(section, force_lo_n, force_hi_n, d_range_mm):
+    """The deformations (mm) at which the `section`'s F0 spans force_lo_n..force_hi_n (the forces the
+    force step reached), within d_range_mm."""
+    f0 = f0_function(section)
+    d = np.linspace(d_range_mm[0], d_range_mm[1], 4001)
+    inside = d[(f0(d) >= force_lo_n) & (f0(d) <= force_hi_n)]
+    return float(inside.min()), float(inside.max())
+
+
+def corrected_f0_table(section, d_span_mm, correction, d_range_mm):
+    """(knots_d mm, knots_f N) of the force `section`'s F0 less the correction, over the
+    deformations `d_span_mm` (deformation_span) and MARGIN_MM beyond, within d_range_mm. Raises
+    ValueError when the result would not rise (it cannot: |c| grows far slower than F0)."""
+    f0 = f0_function(section)
+    lo, hi = max(d_span_mm[0] - MARGIN_MM, d_range_mm[0]), min(d_span_mm[1] + MARGIN_MM, d_range_mm[1])
+    dense = np.linspace(lo, hi, 2001)
+    turns = [float(np.interp(sign * m, f0(dense), dense)) for sign, rows in correction.errors.items() for m, _ in rows
+             if f0(lo) < sign * m < f0(hi)]  # where c turns (f0 rises over the span)
+    keep = list(section.get("knots_in", ())) if section["kind"] == "pwl" else []
+
+    def corrected(d):
+        f = f0(d)
+        return f - correction.at(f)
+
+    kx = table_knots(corrected, lo, hi, keep + turns)
+    kf = corrected(kx)
+    if np.any(np.diff(kf) <= 0):
+        raise ValueError("the corrected F0 does not rise with the deformation")
+    return kx, kf

@@ -1,0 +1,84 @@
+"""The closed-loop F0 correction (host/fitting/force_correction.py) and the sections the trim
+writes with it (host/guided/friction_trim.py trimmed_sections): the error taken from the holds,
+the corrected table, its inverse, and the holds it refuses."""
+
+import math
+
+import numpy as np
+
+from host.calibration.file import poly_section
+from host.fitting.force_correction import (F0Correction, common_errors, corrected_f0_table, deformation_span,
+                                           f0_correction, f0_function)
+from host.guided.friction_trim import Trim, trimmed_sections
+
+SPRING = np.array([0.8, 0.0, 7.0, 0.1])  # N of mm: a hardening spring, 7 N/mm at rest, a little preload
+
+
+def force_doc(coeffs=SPRING):
+    d = np.linspace(-2, 2, 401)
+    f = np.polyval(coeffs, d)
+    return {"force": poly_section(coeffs, (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN")),
+            "force_inverse": poly_section(np.polyfit(f, d, 5), (-25.0, 25.0), 1000.0, 1000.0, ("mN", "um")),
+            "friction": {"kind": "friction", "friction_n": 0.4, "feed_forward_duty": 0, "fit": {}, "fixed": [400]}}
+
+
+def test_the_friction_change_cancels_between_a_loading_and_an_unloading_hold():
+    rows = [(4.8, 4.9, 4.8, True), (9.6, 9.5, 9.6, True), (14.4, 14.5, 14.4, True), (9.6, 9.8, 9.6, False),
+            (4.8, 5.0, 4.8, False)]
+    errors = common_errors(rows, 0.05)  # h grew by 50 mN: loading estimates fall by it, unloading ones rise
+    assert [m for m, _ in errors] == [4.8, 9.6, 14.4]
+    assert np.allclose([c for _, c in errors], [(0.05 + 0.25) / 2, (-0.15 + 0.25) / 2, 0.05]), errors
+
+
+def test_the_correction_is_a_line_from_zero_through_the_holds_and_flat_beyond_on_each_side():
+    c = F0Correction({1: [(4.0, 0.08), (8.0, -0.04)], -1: [(5.0, 0.10)]})
+    got = c.at([2.0, 4.0, 6.0, 8.0, 12.0, -2.5, -5.0, -9.0, 0.0])
+    # on the negative side an error of +0.10 in magnitude is -0.10 in the force's own sign
+    assert np.allclose(got, [0.04, 0.08, 0.02, -0.04, -0.04, -0.05, -0.10, -0.10, 0.0]), got
+
+
+def test_an_error_beyond_5_percent_and_200_mN_is_refused():
+    assert not f0_correction({1: [(4.8, 0.21)]}).why  # 4.4 %
+    assert not f0_correction({1: [(2.0, 0.19)]}).why  # 9.5 %, but under 200 mN
+    refused = f0_correction({1: [(4.8, 0.10)], -1: [(9.6, -0.6)]})
+    assert "-600 mN at -9.6 N" in refused.why, refused
+    assert f0_correction({1: [], -1: []}).why == "no hold with a taut fibre"
+
+
+def test_the_corrected_table_is_f0_less_the_error_and_follows_f0_where_the_error_is_zero():
+    section = force_doc()["force"]
+    f0 = f0_function(section)
+    span = deformation_span(section, -16.0, 16.0, (-2.0, 2.0))
+    assert math.isclose(f0(span[0]), -16.0, abs_tol=0.05) and math.isclose(f0(span[1]), 16.0, abs_tol=0.05), span
+    correction = F0Correction({1: [(4.8, 0.1), (9.6, 0.1), (14.4, 0.2)], -1: [(4.8, -0.05)]})
+    kd, kf = corrected_f0_table(section, span, correction, (-2.0, 2.0))
+    assert np.all(np.diff(kd) > 0) and np.all(np.diff(kf) > 0)
+    d = np.linspace(kd[0], kd[-1], 997)
+    want = f0(d) - correction.at(f0(d))
+    assert np.max(np.abs(np.interp(d, kd, kf) - want)) < 0.003  # TABLE_TOL_N, plus the kink of c at each hold
+    nothing = corrected_f0_table(section, span, F0Correction({1: [], -1: []}), (-2.0, 2.0))
+    assert np.max(np.abs(np.interp(d, *nothing) - f0(d))) <= 0.002
+
+
+def test_trimmed_sections_write_h_and_an_f0_table_with_its_exact_inverse():
+    doc = force_doc()
+    correction = F0Correction({1: [(4.8, 0.06), (9.6, -0.03)], -1: [(4.8, 0.02)]})
+    trim = Trim(0.45, 20.0, -80.0, 10, f0=correction)
+    sections, lines = trimmed_sections(doc, trim, (-16.0, 16.0))
+    assert sections["friction"]["friction_n"] == 0.45 and sections["friction"]["fit"]["identified_n"] == 0.4
+    force, inverse = sections["force"], sections["force_inverse"]
+    assert force["kind"] == inverse["kind"] == "pwl"
+    assert force["knots_in"] == inverse["knots_out"] and force["knots_out"] == inverse["knots_in"]
+    assert math.isclose(np.interp(0.0, force["knots_in"], force["knots_out"]), 0.1, abs_tol=0.003)
+    d = float(np.interp(4.8, force["knots_out"], force["knots_in"]))  # where the corrected F0 reads 4.8 N
+    assert math.isclose(f0_function(doc["force"])(d), 4.86, abs_tol=0.005)  # the old F0 read 60 mN more there
+    assert "F0 corrected in closed loop" in lines[-1] and "+4.8 N: +60 mN" in lines[-1], lines
+
+
+def test_a_refused_correction_still_trims_h_and_says_why_f0_was_kept():
+    doc = force_doc()
+    trim = Trim(0.45, 20.0, -80.0, 10, f0=F0Correction({1: [(4.8, 0.5)]}, why="too large"))
+    sections, lines = trimmed_sections(doc, trim, (-16.0, 16.0))
+    assert set(sections) == {"friction"} and "F0 not corrected (too large)" in lines[-1], lines
+    kept = Trim(0.4, 0.0, 0.0, 2, why="no loading or no unloading hold", f0=F0Correction(why="h was not trimmed"))
+    assert trimmed_sections(doc, kept, (-16.0, 16.0))[0] == {}
