@@ -70,9 +70,10 @@ def add_method_arguments(p):
                    "rig), the 0 mm side (low: positive forces), or one after the other (both, default)")
     p.add_argument("--no-friction", action="store_true", help="force: fit F0(d) without the output block's friction "
                    "term (the paper's model); by default the friction is identified and the firmware compensates it")
-    p.add_argument("--no-trim", action="store_true", help="force: keep the friction h the open-loop levels identified; by "
-                   "default force mode then holds a few targets against the gauge and trims h to what the running loop "
-                   "meets (the block follows the loop's small spring motions)")
+    p.add_argument("--no-trim", action="store_true", help="force: keep the friction h and F0 the open-loop levels "
+                   "identified; by default force mode then holds a few targets against the gauge, trims h to what the "
+                   "running loop meets (the block follows the loop's small spring motions) and takes the error left "
+                   "at each target out of F0")
 
 
 def add_gauge_arguments(p):
