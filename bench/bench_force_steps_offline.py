@@ -186,7 +186,7 @@ def trimmed_calibration(board, cal, out_path):
     trim = trimmed_friction(identified["friction_n"], sides)
     if not TRIM["f0"]:
         trim.f0.why = "--no-f0"
-    sections, lines = trimmed_sections(doc, trim, (-REFIT_RANGE_MN / 1000.0, REFIT_RANGE_MN / 1000.0))
+    sections, lines = trimmed_sections(doc, trim)
     doc.update(sections)
     write_calibration(out_path, doc)
     for line in lines:

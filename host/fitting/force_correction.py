@@ -7,9 +7,10 @@ The friction trim's holds (host/guided/friction_trim.py) compare the running est
 gauge at a few forces on each side. Once h is trimmed, what is left of estimate - gauge is the
 same while loading and unloading: that is F0's error at that force, `c(F)` (force magnitudes).
 
-The corrected F0 is a table that follows F0 - c within TABLE_TOL_N, c taken on each side as a
-line from 0 at zero force through the holds' errors and flat beyond the last one. Its inverse is the same knots swapped, so F0 and d(F0) still agree.
-An error larger than CORRECTION_LIMIT says a hold went wrong (a slipping fibre, a drifting gauge),
+The corrected F0 is a table that follows F0 - c within TABLE_TOL_N over the stretch where F0
+rises, c taken on each side as a line from 0 at zero force through the holds' errors and flat
+beyond the last one. Its inverse is the same knots swapped, so F0 and d(F0) still agree. An
+error larger than CORRECTION_LIMIT says a hold went wrong (a slipping fibre, a drifting gauge),
 not a fit: the correction is then refused and F0 kept.
 """
 
@@ -19,9 +20,8 @@ import numpy as np
 
 from host.fitting.force import table_value
 
-TABLE_TOL_N = 0.002  # the table follows the old F0 this closely before it is corrected
-CORRECTION_LIMIT = (0.05, 0.2)  # an error beyond this fraction of its force and this many N is not trusted
-MARGIN_MM = 0.1  # the table's knots reach this far past the deformations the force step measured
+TABLE_TOL_N = 0.002  # the table follows F0 - c this closely
+CORRECTION_LIMIT = (0.1, 0.3)  # an error beyond this fraction of its force and this many N is not trusted
 
 
 @dataclass
@@ -92,21 +92,34 @@ def table_knots(g, d_lo, d_hi, keep=()):
     return kx
 
 
-def deformation_span(section, force_lo_n, force_hi_n, d_range_mm):
-    """The deformations (mm) at which the `section`'s F0 spans force_lo_n..force_hi_n (the forces the
-    force step reached), within d_range_mm."""
+def deformation_span(section, d_range_mm, f_range_n):
+    """The deformations (mm) the table must cover: the stretch of d_range_mm around F0 = 0 over which
+    the `section`'s F0 rises, cut where it leaves f_range_n (the inverse's input range). Beyond it
+    the firmware's table goes on straight, as a table of the force step's own does. A side the
+    gauge never loaded keeps its F0 this way (its c is 0); a polynomial that folds back near the
+    cavity's end is cut at the fold. ValueError when F0 does not rise through 0."""
     f0 = f0_function(section)
     d = np.linspace(d_range_mm[0], d_range_mm[1], 4001)
-    inside = d[(f0(d) >= force_lo_n) & (f0(d) <= force_hi_n)]
-    return float(inside.min()), float(inside.max())
+    f = f0(d)
+    zero = int(np.argmin(np.abs(f)))
+    rising = np.diff(f) > 0
+    if not (0 < zero < len(d) - 1 and f[zero - 1] < 0 < f[zero + 1]):
+        raise ValueError("F0 does not rise through 0 N inside the cavity")
+    lo = zero
+    while lo > 0 and rising[lo - 1] and f[lo - 1] >= f_range_n[0]:
+        lo -= 1
+    hi = zero
+    while hi < len(d) - 1 and rising[hi] and f[hi + 1] <= f_range_n[1]:
+        hi += 1
+    return float(d[lo]), float(d[hi])
 
 
-def corrected_f0_table(section, d_span_mm, correction, d_range_mm):
+def corrected_f0_table(section, d_span_mm, correction):
     """(knots_d mm, knots_f N) of the force `section`'s F0 less the correction, over the
-    deformations `d_span_mm` (deformation_span) and MARGIN_MM beyond, within d_range_mm. Raises
-    ValueError when the result would not rise (it cannot: |c| grows far slower than F0)."""
+    deformations `d_span_mm` (deformation_span, where F0 rises). Raises ValueError when the result
+    would not rise (it cannot while |c| grows far slower than F0)."""
     f0 = f0_function(section)
-    lo, hi = max(d_span_mm[0] - MARGIN_MM, d_range_mm[0]), min(d_span_mm[1] + MARGIN_MM, d_range_mm[1])
+    lo, hi = d_span_mm
     dense = np.linspace(lo, hi, 2001)
     turns = [float(np.interp(sign * m, f0(dense), dense)) for sign, rows in correction.errors.items() for m, _ in rows
              if f0(lo) < sign * m < f0(hi)]  # where c turns (f0 rises over the span)

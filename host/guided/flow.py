@@ -124,9 +124,8 @@ def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
         outcome.lines.append("force: friction not trimmed (%s); h stays %.3f N as identified" % (exc, identified["friction_n"]))
         prompter.say("  " + outcome.lines[-1])
         return
-    force_n = outcome.data["force_n"]
     doc = read_calibration(path)
-    sections, lines = trimmed_sections(doc, trim, (min(0.0, float(min(force_n))), max(0.0, float(max(force_n)))))
+    sections, lines = trimmed_sections(doc, trim)
     if sections:  # one write: F0 and its inverse must not disagree on the board
         doc.update(sections, date=now_iso())
         if board_name is not None:

@@ -21,7 +21,7 @@ F0's error at each target, which host/fitting/force_correction.py takes out of F
 writes both). The holds also serve host/experiments/force_runs.py (hold_sequence).
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from host.errors import UserError
 from host.fitting.force_correction import F0Correction, common_errors, corrected_f0_table, deformation_span, f0_correction
@@ -77,9 +77,9 @@ class Trim:
     friction_n: float  # the trimmed h (the identified one when `why` says it was not trimmed)
     loading_mn: float  # mean estimate - gauge while loading, mN (force magnitudes), at the targets held both ways
     unloading_mn: float  # ... while unloading
-    holds: int  # holds used (taut fibre)
+    holds: int  # holds with a taut fibre (the means: those at targets held both ways)
     why: str = ""  # why h was kept, else empty
-    f0: F0Correction = None  # F0's error left once h is trimmed (host/fitting/force_correction.py)
+    f0: F0Correction = field(default_factory=lambda: F0Correction(why="not measured"))  # F0's error once h is trimmed
 
 
 def taut_holds(rows):
@@ -143,10 +143,10 @@ def trim_friction(session, rig, prompter, opts, data):
     return trimmed_friction(data["friction_n"], sides)
 
 
-def trimmed_sections(doc, trim, force_span_n):
+def trimmed_sections(doc, trim):
     """The calibration sections a Trim rewrites in `doc` (a calibration document with the force
-    step's sections): friction, and force and force_inverse when F0 is corrected over the forces
-    the force step reached (`force_span_n`, signed lo, hi). With the lines that say what was done."""
+    step's sections): friction, and force and force_inverse when F0 is corrected (the identified
+    F0 kept in the new section's fit, `identified`). With the lines that say what was done."""
     from host.calibration.file import force_table_section, friction_section
     from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
 
@@ -157,21 +157,21 @@ def trimmed_sections(doc, trim, force_span_n):
     stats = dict(identified.get("fit") or {}, identified_n=h, trim_loading_mn=trim.loading_mn,
                  trim_unloading_mn=trim.unloading_mn, trim_holds=trim.holds)
     sections = {"friction": friction_section(trim.friction_n, stats, ff_duty=identified.get("feed_forward_duty", 0))}
-    lines = ["force: friction trimmed in closed loop to h = %.3f N (identified %.3f): over %d holds the estimate "
-             "minus the gauge was %+.0f mN loading, %+.0f mN unloading" % (trim.friction_n, h, trim.holds,
-                                                                           trim.loading_mn, trim.unloading_mn)]
+    lines = ["force: friction trimmed in closed loop to h = %.3f N (identified %.3f): %d holds; at the targets held "
+             "both ways the estimate minus the gauge was %+.0f mN loading, %+.0f mN unloading" % (
+                 trim.friction_n, h, trim.holds, trim.loading_mn, trim.unloading_mn)]
     errors = "; ".join("%+.1f N: %+.0f mN" % (sign * m, 1000 * c) for sign, rows in sorted(trim.f0.errors.items())
                        for m, c in rows)
     if trim.f0.why:
         return sections, lines + ["force: F0 not corrected (%s)%s" % (trim.f0.why, "; errors " + errors if errors else "")]
     force = doc["force"]
     try:
-        span = deformation_span(force, force_span_n[0], force_span_n[1], D_RANGE_MM)
-        kd, kf = corrected_f0_table(force, span, trim.f0, D_RANGE_MM)
-        stats_f = dict(force.get("fit") or {}, corrected_from=force["kind"], correction_mn=errors)
-        sections["force"] = force_table_section(kd, kf, D_RANGE_MM, ("um", "mN"), stats_f)
+        kd, kf = corrected_f0_table(force, deformation_span(force, D_RANGE_MM, F_RANGE_N), trim.f0)
+        identified_f0 = {k: v for k, v in force.items() if k not in ("fixed", "fixed_check")}
+        sections["force"] = force_table_section(kd, kf, D_RANGE_MM, ("um", "mN"),
+                                                {"correction_mn": errors, "knots": len(kd), "identified": identified_f0})
         sections["force_inverse"] = force_table_section(kf, kd, F_RANGE_N, ("mN", "um"),
-                                                        dict(doc["force_inverse"].get("fit") or {}, corrected=True))
+                                                        {"exact inverse of": "the corrected F0"})
     except (ValueError, UserError) as exc:
         return sections, lines + ["force: F0 not corrected (%s)" % exc]
     return sections, lines + ["force: F0 corrected in closed loop (estimate - gauge common to loading and unloading, "

@@ -37,34 +37,59 @@ def test_the_correction_is_a_line_from_zero_through_the_holds_and_flat_beyond_on
     assert np.allclose(got, [0.04, 0.08, 0.02, -0.04, -0.04, -0.05, -0.10, -0.10, 0.0]), got
 
 
-def test_an_error_beyond_5_percent_and_200_mN_is_refused():
-    assert not f0_correction({1: [(4.8, 0.21)]}).why  # 4.4 %
-    assert not f0_correction({1: [(2.0, 0.19)]}).why  # 9.5 %, but under 200 mN
-    refused = f0_correction({1: [(4.8, 0.10)], -1: [(9.6, -0.6)]})
-    assert "-600 mN at -9.6 N" in refused.why, refused
+def test_an_error_beyond_10_percent_and_300_mN_is_refused():
+    assert not f0_correction({1: [(4.8, 0.45)]}).why  # 9.4 %
+    assert not f0_correction({1: [(2.0, 0.29)]}).why  # 14.5 %, but under 300 mN
+    refused = f0_correction({1: [(4.8, 0.10)], -1: [(9.6, -1.0)]})
+    assert "-1000 mN at -9.6 N" in refused.why, refused
     assert f0_correction({1: [], -1: []}).why == "no hold with a taut fibre"
 
 
 def test_the_corrected_table_is_f0_less_the_error_and_follows_f0_where_the_error_is_zero():
     section = force_doc()["force"]
     f0 = f0_function(section)
-    span = deformation_span(section, -16.0, 16.0, (-2.0, 2.0))
-    assert math.isclose(f0(span[0]), -16.0, abs_tol=0.05) and math.isclose(f0(span[1]), 16.0, abs_tol=0.05), span
+    span = deformation_span(section, (-2.0, 2.0), (-25.0, 25.0))
+    assert span == (-2.0, 2.0) and f0(-2.0) > -25 and f0(2.0) < 25  # F0 rises over the whole cavity
     correction = F0Correction({1: [(4.8, 0.1), (9.6, 0.1), (14.4, 0.2)], -1: [(4.8, -0.05)]})
-    kd, kf = corrected_f0_table(section, span, correction, (-2.0, 2.0))
+    kd, kf = corrected_f0_table(section, span, correction)
     assert np.all(np.diff(kd) > 0) and np.all(np.diff(kf) > 0)
     d = np.linspace(kd[0], kd[-1], 997)
     want = f0(d) - correction.at(f0(d))
     assert np.max(np.abs(np.interp(d, kd, kf) - want)) < 0.003  # TABLE_TOL_N, plus the kink of c at each hold
-    nothing = corrected_f0_table(section, span, F0Correction({1: [], -1: []}), (-2.0, 2.0))
+    nothing = corrected_f0_table(section, span, F0Correction({1: [], -1: []}))
     assert np.max(np.abs(np.interp(d, *nothing) - f0(d))) <= 0.002
+
+
+def test_a_side_the_gauge_never_loaded_keeps_its_f0():
+    section = force_doc()["force"]
+    f0 = f0_function(section)
+    kd, kf = corrected_f0_table(section, deformation_span(section, (-2.0, 2.0), (-25.0, 25.0)),
+                                F0Correction({1: [(4.8, 0.1), (14.4, 0.1)]}))
+    d = np.linspace(-2.0, -0.05, 300)  # F0 < 0 there: the high side, never loaded
+    assert np.max(np.abs(np.interp(d, kd, kf) - f0(d))) <= 0.002
+
+
+def test_the_span_stops_where_f0_folds_back_or_leaves_the_force_range():
+    folding = poly_section([-3.0, 0.0, 7.0, 0.0], (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN"))  # peaks at +-0.88 mm
+    lo, hi = deformation_span(folding, (-2.0, 2.0), (-25.0, 25.0))
+    assert math.isclose(lo, -math.sqrt(7 / 9), abs_tol=0.002) and math.isclose(hi, math.sqrt(7 / 9), abs_tol=0.002)
+    lo, hi = deformation_span(force_doc()["force"], (-2.0, 2.0), (-10.0, 10.0))
+    f0 = f0_function(force_doc()["force"])
+    assert -10.0 <= f0(lo) < -9.9 and 9.9 < f0(hi) <= 10.0, (f0(lo), f0(hi))
+    offset = poly_section([7.0, 3.0], (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN"))  # 3 N at d = 0: crosses at -0.43
+    assert deformation_span(offset, (-2.0, 2.0), (-25.0, 25.0))[0] == -2.0
+    try:
+        deformation_span(poly_section([7.0, 20.0], (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN")), (-2.0, 2.0), (-25.0, 25.0))
+        raise AssertionError("a spring that never crosses 0 N in the cavity has no span")
+    except ValueError as exc:
+        assert "does not rise through 0 N" in str(exc)
 
 
 def test_trimmed_sections_write_h_and_an_f0_table_with_its_exact_inverse():
     doc = force_doc()
     correction = F0Correction({1: [(4.8, 0.06), (9.6, -0.03)], -1: [(4.8, 0.02)]})
     trim = Trim(0.45, 20.0, -80.0, 10, f0=correction)
-    sections, lines = trimmed_sections(doc, trim, (-16.0, 16.0))
+    sections, lines = trimmed_sections(doc, trim)
     assert sections["friction"]["friction_n"] == 0.45 and sections["friction"]["fit"]["identified_n"] == 0.4
     force, inverse = sections["force"], sections["force_inverse"]
     assert force["kind"] == inverse["kind"] == "pwl"
@@ -72,13 +97,16 @@ def test_trimmed_sections_write_h_and_an_f0_table_with_its_exact_inverse():
     assert math.isclose(np.interp(0.0, force["knots_in"], force["knots_out"]), 0.1, abs_tol=0.003)
     d = float(np.interp(4.8, force["knots_out"], force["knots_in"]))  # where the corrected F0 reads 4.8 N
     assert math.isclose(f0_function(doc["force"])(d), 4.86, abs_tol=0.005)  # the old F0 read 60 mN more there
+    d = float(np.interp(-4.8, force["knots_out"], force["knots_in"]))
+    assert math.isclose(f0_function(doc["force"])(d), -4.82, abs_tol=0.005)  # 20 mN more in magnitude on that side
+    assert force["fit"]["identified"]["coefficients"] == doc["force"]["coefficients"]  # the identified F0 is kept
     assert "F0 corrected in closed loop" in lines[-1] and "+4.8 N: +60 mN" in lines[-1], lines
 
 
 def test_a_refused_correction_still_trims_h_and_says_why_f0_was_kept():
     doc = force_doc()
-    trim = Trim(0.45, 20.0, -80.0, 10, f0=F0Correction({1: [(4.8, 0.5)]}, why="too large"))
-    sections, lines = trimmed_sections(doc, trim, (-16.0, 16.0))
+    trim = Trim(0.45, 20.0, -80.0, 10, f0=F0Correction({1: [(4.8, 0.6)]}, why="too large"))
+    sections, lines = trimmed_sections(doc, trim)
     assert set(sections) == {"friction"} and "F0 not corrected (too large)" in lines[-1], lines
-    kept = Trim(0.4, 0.0, 0.0, 2, why="no loading or no unloading hold", f0=F0Correction(why="h was not trimmed"))
-    assert trimmed_sections(doc, kept, (-16.0, 16.0))[0] == {}
+    kept = Trim(0.4, 0.0, 0.0, 2, why="no target held both loading and unloading")
+    assert trimmed_sections(doc, kept)[0] == {} and kept.f0.why

@@ -50,10 +50,10 @@ def test_every_step_is_accepted_written_and_verified(full_run):
     trim = doc["friction"]["fit"]
     assert trim["trim_holds"] >= 8 and abs(doc["friction"]["friction_n"] - trim["identified_n"]) < 0.5 * trim["identified_n"]
     assert any("friction trimmed in closed loop" in line for line in said)
-    # and F0 corrected by what the holds left, unless the line says why not; F0 and its inverse agree
-    assert any("F0 corrected in closed loop" in line or "F0 not corrected (" in line for line in said)
-    if doc["force"]["kind"] == "pwl":
-        assert doc["force"]["knots_in"] == doc["force_inverse"]["knots_out"]
+    # and F0 corrected by what the holds left: a table, its inverse the same knots swapped
+    assert any("F0 corrected in closed loop" in line for line in said), [x for x in said if "F0" in x]
+    assert doc["force"]["kind"] == doc["force_inverse"]["kind"] == "pwl" and doc["force"]["fit"]["identified"]
+    assert doc["force"]["knots_in"] == doc["force_inverse"]["knots_out"]
     assert crcs[-1] == json.loads(out.read_text())["crc32"]
     for png in ("calibration-pot1.png", "calibration-pot2.png", "calibration-df.png", "calibration-force.png"):
         assert (out.parent / png).stat().st_size > 10000
