@@ -21,6 +21,7 @@ import numpy as np
 from host.fitting.force import table_value
 
 TABLE_TOL_N = 0.002  # the table follows F0 - c this closely
+SPAN_OF_RANGE = 0.9
 CORRECTION_LIMIT = (0.1, 0.3)  # an error beyond this fraction of its force and this many N is not trusted
 
 
@@ -94,13 +95,16 @@ def table_knots(g, d_lo, d_hi, keep=()):
 
 def deformation_span(section, d_range_mm, f_range_n):
     """The deformations (mm) the table must cover: the stretch of d_range_mm around F0 = 0 over which
-    the `section`'s F0 rises, cut where it leaves f_range_n (the inverse's input range). Beyond it
+    the `section`'s F0 rises, cut where it leaves SPAN_OF_RANGE of f_range_n (the inverse's input
+    range: the exporter carries the last segment on to its end, and a sliver of a segment would
+    round to a step of 0 um). Beyond it
     the firmware's table goes on straight, as a table of the force step's own does. A side the
     gauge never loaded keeps its F0 this way (its c is 0); a polynomial that folds back near the
     cavity's end is cut at the fold. ValueError when F0 does not rise through 0."""
     f0 = f0_function(section)
     d = np.linspace(d_range_mm[0], d_range_mm[1], 4001)
     f = f0(d)
+    f_range_n = [SPAN_OF_RANGE * v for v in f_range_n]
     zero = int(np.argmin(np.abs(f)))
     rising = np.diff(f) > 0
     if not (0 < zero < len(d) - 1 and f[zero - 1] < 0 < f[zero + 1]):
@@ -133,4 +137,11 @@ def corrected_f0_table(section, d_span_mm, correction):
     kf = corrected(kx)
     if np.any(np.diff(kf) <= 0):
         raise ValueError("the corrected F0 does not rise with the deformation")
-    return kx, kf
+    # the firmware's tables hold um and mN: a knot that would not rise after rounding goes
+    kept = [0]
+    for i in range(1, len(kx)):
+        if round(kx[i] * 1000) > round(kx[kept[-1]] * 1000) and round(kf[i] * 1000) > round(kf[kept[-1]] * 1000):
+            kept.append(i)
+    if kept[-1] != len(kx) - 1:
+        kept[-1] = len(kx) - 1  # the span's end stays; the knot before it was at least as far from the one before
+    return kx[kept], kf[kept]
