@@ -108,6 +108,10 @@ def test_a_refused_correction_still_trims_h_and_says_why_f0_was_kept():
     trim = Trim(0.45, 20.0, -80.0, 10, f0=F0Correction({1: [(4.8, 0.6)]}, why="too large"))
     sections, lines = trimmed_sections(doc, trim)
     assert set(sections) == {"friction"} and "F0 not corrected (too large)" in lines[-1], lines
+    # a table the board would refuse is not written: here a poly F0 that never crosses 0 N
+    doc_far = dict(doc, force=poly_section([7.0, 20.0], (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN")))
+    sections, lines = trimmed_sections(doc_far, Trim(0.45, 20.0, -80.0, 10, f0=F0Correction({1: [(4.8, 0.05)]})))
+    assert set(sections) == {"friction"} and "F0 not corrected (F0 does not rise through 0 N" in lines[-1], lines
     kept = Trim(0.4, 0.0, 0.0, 2, why="no target held both loading and unloading")
     assert trimmed_sections(doc, kept)[0] == {} and kept.f0.why
 
@@ -140,3 +144,22 @@ def test_a_spring_that_reaches_the_inverses_range_leaves_it_a_whole_segment():
         assert kf[-1] <= 22.5
         check_sections({"force": force_table_section(kd, kf, (-2.0, 2.0), ("um", "mN")),
                         "force_inverse": force_table_section(kf, kd, (-25.0, 25.0), ("mN", "um"))})
+
+
+def test_a_table_the_board_would_refuse_is_not_written(monkeypatch):
+    """Should a corrected table still be one the board refuses (here: the span's 90 % rule undone,
+    the slivers of the test above back), the trim keeps the identified F0 and says why, and the
+    run goes on: before, such a file stopped a whole robustness run at its calibration."""
+    import host.fitting.force_correction as force_correction
+
+    monkeypatch.setattr(force_correction, "SPAN_OF_RANGE", 1.0)
+    refused = 0
+    for k in np.linspace(12.0, 13.0, 12):
+        doc = dict(force_doc(), force=poly_section([0.8, 0.0, k, 0.1], (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN")))
+        sections, lines = trimmed_sections(doc, Trim(0.45, 0.0, 0.0, 10, f0=F0Correction({1: [(4.8, 0.05)]})))
+        if "F0 not corrected (section force_inverse: a force table must rise)" in lines[-1]:
+            refused += 1
+            assert set(sections) == {"friction"}, sections
+        else:
+            assert "F0 corrected" in lines[-1], lines
+    assert refused > 0
