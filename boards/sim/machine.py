@@ -2,16 +2,10 @@
 
 `configure(board, seed)` builds the world from a board dict (boards/sim.json); `for_board(path)`
 does it from a board file and returns the module, the firmware's `machine`. Pins are labels:
-an ADC pin's label names the sensor channel wired to it ("pot1" carries the nut's pot), motor
-pins the H-bridge inputs (board["motor_pins"]). How the actuator is wired is part of the plant,
-not of the board file: `actuator.wiring` can say that it is wired wrongly, as a first bench
-often is, and the firmware's board file then has to compensate (host calibrate bringup finds it):
-  "adc": {"pot1": "pot2", ...}    the pin labelled pot1 carries the block's pot (pots swapped)
-  "pot_reversed": ["pot1"]        pot 1's track ends swapped: its reading falls as the nut goes out
-  "motor_reversed": true          the motor leads swapped: positive voltage drives toward 0 mm
-The motor voltage follows the board's driver:
-  two_pwm (DRV8833 IN1/IN2): V = supply * (duty_in1 - duty_in2) / 65535
-  pwm_dir (TB6612 PWM + DIR): V = +-supply * duty / 65535, + when the dir pin is 1
+an ADC pin's label names the sensor channel meant for it ("pot1" carries the nut's pot), motor
+pins the H-bridge inputs (board["motor_pins"]). Where the wires really go, and the motor voltage
+the bridge makes of its inputs, is boards/sim/harness.py (the actuator's `wiring` can say that it
+is wired wrongly, as a first bench often is; host calibrate bringup finds it).
 Time: `run_ticks(n)` advances physics one timer period and then fires the timer callback, n times
 (deterministic, for tests); `idle()` does the same for each tick due by the wall clock (the
 real-time virtual board), catching up at most max_catchup_ticks at once and counting the rest
@@ -23,9 +17,11 @@ import time
 
 from boards.sim import bench_rig
 from boards.sim.actuator import CHANNELS, Actuator
+from boards.sim.harness import Harness
 
 _world = None
 _board = None
+_harness = None
 _timer = None
 _pins = {}  # label -> Pin (the last one made for that label)
 _pwms = {}  # label -> PWM
@@ -65,7 +61,7 @@ def keep_world(flag=True):
 
 def configure(board, seed=None):
     """Create the simulated world for this board (a fresh actuator, no timer, motor off)."""
-    global _world, _board, _timer, _pins, _pwms, ticks, skipped_ticks, _max_catchup
+    global _world, _board, _harness, _timer, _pins, _pwms, ticks, skipped_ticks, _max_catchup
     params = dict(board["actuator"])
     params["adc_bits"] = board["adc_bits"]
     same = _world is not None and _board is not None and _board.get("name") == board.get("name")
@@ -76,6 +72,10 @@ def configure(board, seed=None):
         ticks = 0
         skipped_ticks = 0
     _board = board
+    # Pins here are labels, each the name of the sensor or bridge input it was meant for, so the
+    # harness is built from those names: a board file corrected by bringup names other labels,
+    # the wires stay where they are
+    _harness = Harness(dict(board, adc_pins=dict((c, c) for c in CHANNELS)), params)
     _timer = None
     _pins = {}
     _pwms = {}
@@ -135,23 +135,19 @@ class Pin:
         return self.value(v)
 
 
-def _wiring():
-    return _board["actuator"].get("wiring") or {}
-
-
 class ADC:
     def __init__(self, pin, *args, **kwargs):
         label = _label(pin)
         world()
-        wiring = _wiring()
-        name = (wiring.get("adc") or {}).get(label, label)
-        if name not in CHANNELS:
+        try:
+            name, reversed_track = _harness.channel(label)
+        except ValueError:
             raise ValueError("pin %r is not an ADC pin of board %s" % (label, _board["name"]))
         self.channel = name
         self._i = CHANNELS.index(name)
         self._w = _world
         # a track wired end for end reads the complement: 65535 - v, exactly ~v in 16 bits
-        self._flip = 0xFFFF if name in (wiring.get("pot_reversed") or ()) else 0
+        self._flip = 0xFFFF if reversed_track else 0
 
     def read_u16(self):
         return self._w.read_u16_index(self._i) ^ self._flip
@@ -218,24 +214,18 @@ class Timer:
             _timer = None
 
 
-def _duty(label):
+def _level(label):
+    """A bridge input's level, 0..1: a PWM pin's duty, else an output pin's value."""
     p = _pwms.get(label)
-    return p._duty if p is not None else 0
+    if p is not None:
+        return p._duty / 65535.0
+    pin = _pins.get(label)
+    return 1.0 if (pin is not None and pin._value) else 0.0
 
 
 def motor_voltage():
     """Voltage across the motor from the present PWM duties and pin levels."""
-    supply = float(_board["supply_volts"])
-    if _wiring().get("motor_reversed"):
-        supply = -supply
-    mp = _board["motor_pins"]
-    if _board["driver"] == "two_pwm":
-        return supply * (_duty(mp["in1"]) - _duty(mp["in2"])) / 65535.0
-    if _board["driver"] == "pwm_dir":
-        d = _pins.get(mp["dir"])
-        sign = 1.0 if (d is not None and d._value) else -1.0
-        return sign * supply * _duty(mp["pwm"]) / 65535.0
-    raise ValueError("unknown driver %r" % _board["driver"])
+    return _harness.motor_volts(_level)
 
 
 def _tick():
