@@ -27,6 +27,12 @@ from host.link.frames import FrameDecoder
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 PATIENCE_S = 8.0  # wall-clock seconds a request resends before the board counts as not answering
 RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this long without a hello
+# A board that answered the reset with "soft reboot" is booting. With a full calibration the boot
+# (checking each pot curve at every ADC code, tabulating D1* and D2) takes about a second on an
+# RP2040 (docs/emulated-pico.md), several on a slow emulator: it is waited for this long and never
+# interrupted, as a Ctrl-C meant to restart a silent board would cut it short.
+BOOT_WAIT_S = 30.0
+_SOFT_REBOOT = b"soft reboot"
 
 
 class BoardError(UserError):
@@ -44,6 +50,7 @@ class BoardClient:
         self.decoder = FrameDecoder()
         self.telemetry = collections.deque()
         self.hellos = 0
+        self._raw_tail = b""  # the last bytes read, frames and text alike (soft_reset looks for "soft reboot")
         self._seq = random.randrange(1, P.SEQ_MASK)  # a new session never repeats the last line
         self._last_heartbeat = 0.0
         self.serial = self._open(port)
@@ -106,9 +113,11 @@ class BoardClient:
         """Leave whatever runs (Ctrl-C), go to the friendly REPL (Ctrl-B), soft reset (Ctrl-D):
         a board then boots main.py, i.e. the firmware. True once its hello frame came.
 
-        Tried again every RESET_RETRY_S while `wait` lasts: a tool killed halfway through a
-        transfer (mpremote in raw-paste mode) can leave the REPL where the first sequence only
-        ends the transfer, and the second one then resets."""
+        Until the board says "soft reboot", the sequence is sent again every RESET_RETRY_S while
+        `wait` lasts: a tool killed halfway through a transfer (mpremote in raw-paste mode) can
+        leave the REPL where the first sequence only ends the transfer, and the second one then
+        resets. Once it has said so, it is booting, and its hello is waited for up to BOOT_WAIT_S
+        from then, without interrupting it."""
         ser = self.serial
         deadline = time.monotonic() + wait
         while True:
@@ -116,13 +125,18 @@ class BoardClient:
             time.sleep(0.2)
             ser.write(b"\r\x02")
             time.sleep(0.2)
+            self._read_frames()  # what came before the reset is not its answer
+            self._raw_tail = b""
             ser.write(b"\x04")
             retry = min(deadline, time.monotonic() + RESET_RETRY_S)
-            while time.monotonic() < retry:
+            booting_until = None
+            while time.monotonic() < (booting_until or retry):
                 for frame in self._read_frames():
                     if frame.type == P.T_HELLO:
                         return True
-            if time.monotonic() >= deadline:
+                if booting_until is None and _SOFT_REBOOT in self._raw_tail:
+                    booting_until = time.monotonic() + BOOT_WAIT_S
+            if booting_until is not None or time.monotonic() >= deadline:
                 return False
 
     # -- requests ----------------------------------------------------------------------
@@ -133,6 +147,8 @@ class BoardClient:
     def _read_frames(self):
         data = self.serial.read(max(1, self.serial.in_waiting))
         self.received += len(data)
+        if data:
+            self._raw_tail = (self._raw_tail + data)[-64:]
         frames = self.decoder.feed(data) if data else []
         for frame in frames:
             if frame.type == P.T_TELEMETRY:
