@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from host.commands._options import ranged
+from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.errors import UserError
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
@@ -21,7 +21,8 @@ def add_parser(subparsers):
     p.add_argument("step", nargs="?", choices=(BRINGUP,) + STEPS + ("all",), default="all",
                    help="one step, or all in order (default; bringup first unless it passed before on this board)")
     p.add_argument("--port", default="auto",
-                   help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
+                   help=PORT_HELP)
+    add_uf2_argument(p)
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports; sim: boards/sim.json)")
     p.add_argument("--yes", action="store_true", help="no questions: mount automatically (virtual rig), accept results that pass every check")
     p.add_argument("--out", default="calibration.json", metavar="FILE", help="calibration file to write (default calibration.json)")
@@ -88,8 +89,8 @@ def add_gauge_arguments(p):
 def make_rig(args, prompter, session):
     from host.guided.rig import Rig, gauge_scale
 
-    scale = gauge_scale(session.board, args.gauge_zero_n, args.gauge_span_n) if args.gauge == "adc" else None
-    return Rig(prompter, session.root, gauge=args.gauge, gauge_scale=scale, adc_bits=session.board["adc_bits"])
+    scale = gauge_scale(session.actuator, args.gauge_zero_n, args.gauge_span_n) if args.gauge == "adc" else None
+    return Rig(prompter, session.virtual, gauge=args.gauge, gauge_scale=scale, adc_bits=session.board["adc_bits"])
 
 
 def method_options(args):
@@ -140,7 +141,7 @@ def calibrate(args, say=print, ask=None, log=None):
     opts = options_from(args)
     steps = (BRINGUP,) + STEPS if args.step == "all" else (args.step,)
     prompter = Prompter(yes=args.yes, ask=ask, out=say)
-    with Session(args.port, args.board, opts.out, say=say) as session:
+    with Session(args.port, args.board, opts.out, say=say, uf2=args.uf2) as session:
         if args.yes and session.virtual is None and opts.reference == "manual":
             raise UserError("--yes with --reference manual: nobody to read the dial gauge")
         if args.step == "all":
@@ -149,7 +150,7 @@ def calibrate(args, say=print, ask=None, log=None):
                 steps = STEPS
                 say("bringup passed on %s (host calibrate bringup runs it again)" % done.get("date"))
         if ("pots" in steps or BRINGUP in steps) and opts.reference == "adc":
-            opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
+            opts.ref_scale = reference_scale(session.actuator, args.ref_zero_mm, args.ref_span_mm)
         rig = make_rig(args, prompter, session)
         if log:
             log.results["board"] = session.board["name"]

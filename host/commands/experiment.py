@@ -50,7 +50,7 @@ def run(args):
     results = {}
     try:
         with Session(args.port, args.board, None, say=prompter.say) as session:
-            opts.ref_scale = reference_scale(session.board, args.ref_zero_mm, args.ref_span_mm)
+            opts.ref_scale = reference_scale(session.actuator, args.ref_zero_mm, args.ref_span_mm)
             rig = make_rig(args, prompter, session)
             path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say, results=results)
     except (Exception, KeyboardInterrupt) as exc:

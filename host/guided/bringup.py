@@ -128,10 +128,10 @@ def _stats(records):
     return {c: (acquire.mean(records, c), float(np.std(records[:, acquire.COL[c]]))) for c in ("raw1", "raw2", "raw_ref")}
 
 
-def _block_mm(records, board, opts):
+def _block_mm(records, board, opts, actuator):
     if opts.reference != "adc" or not len(records):
         return None
-    scale = reference_scale(board, *(opts.ref_scale or (None, None)))
+    scale = opts.ref_scale or reference_scale(actuator)
     return float(np.mean(reference_mm(records[:, acquire.COL["raw_ref"]], board["adc_bits"], scale)))
 
 
@@ -176,7 +176,7 @@ def probe_wiring(session, rig, prompter, opts):
                                "%.1f (--fix writes it)" % (label, std, n, std * (now / n) ** 0.5))
     if w.problems:
         return w
-    block = _block_mm(rest, board, opts)
+    block = _block_mm(rest, board, opts, session.actuator)
     if block is not None:
         w.lines.append("reference sensor on the block: %.1f mm" % block)
         if not END_MARGIN_MM <= block <= 60 - END_MARGIN_MM:
@@ -198,7 +198,7 @@ def probe_wiring(session, rig, prompter, opts):
     for c, pot in (("raw1", "pot1"), ("raw2", "pot2")):
         if not moved[c]:
             w.problems.append("%s did not change while the actuator moved: check its wiper wire" % pot)
-    after_mm = _block_mm(after, board, opts)
+    after_mm = _block_mm(after, board, opts, session.actuator)
     if after_mm is not None:
         went = after_mm - block
         w.lines.append("the block moved %+.2f mm (reference sensor)" % went)

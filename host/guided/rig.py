@@ -1,32 +1,27 @@
-"""The bench rig: what a person mounts for each step, and, on the virtual board, doing it.
+"""The bench rig: what a person mounts for each step, and, on a virtual board, doing it.
 
-On a real board the rig prints the instruction and waits for Enter. On the virtual board it also
-writes `rig.json` into the board's filesystem root (atomically: temp file then rename), where
-boards/sim/bench_rig.py applies it to the simulated world within ~100 ms; the gauge's display is
-read back from `gauge.json` there. The reference sensor's scale (its datasheet: the position at
-code 0 and the span over full scale) comes from the board file on the simulated board
-("actuator.reference") and from --ref-zero-mm / --ref-span-mm on a real one.
+On a real board the rig prints the instruction and waits for Enter. On a virtual board it also
+mounts it: the board object (host.link.virtual_board.VirtualBoard, the unix port, through rig.json
+in its flash; host.link.emulated_pico.board.EmulatedPico, straight to the actuator beside the
+chip) applies the rig's state with `rig(state)` and shows the gauge's display with `gauge()`.
+The reference sensor's scale (its datasheet: the position at code 0 and the span over full
+scale) comes from the simulated actuator on a virtual board ("actuator.reference") and from
+--ref-zero-mm / --ref-span-mm on a real one.
 
 The force gauge is read one of two ways (`--gauge`): from its display ("display": typed in by the
-person on a real bench; the virtual rig's display file on the simulated one), or ("adc") from its
+person on a real bench; the virtual rig's display on a simulated one), or ("adc") from its
 analog output wired to the board's reference ADC input for the force step, through the firmware's
-telemetry, with the gauge's scale (--gauge-zero-n / --gauge-span-n, or the simulated board's file).
+telemetry, with the gauge's scale (--gauge-zero-n / --gauge-span-n, or the simulated actuator's).
 """
-
-import json
-import os
-import time
-from pathlib import Path
 
 from host.errors import UserError
 
-APPLY_S = 0.35  # the rig polls every 100 ms; wait a few polls before trusting the new state
-
 
 class Rig:
-    def __init__(self, prompter, root=None, gauge="display", gauge_scale=None, adc_bits=12):
+    def __init__(self, prompter, board=None, gauge="display", gauge_scale=None, adc_bits=12):
+        """`board`: the virtual board the rig mounts things on, None on a real bench."""
         self.prompter = prompter
-        self.root = Path(root) if root else None
+        self.board = board
         self.state = {"reference": None, "load": {"kind": "none"}, "fault": None}
         if gauge not in ("display", "adc"):
             raise UserError("--gauge must be display or adc")
@@ -38,19 +33,13 @@ class Rig:
 
     @property
     def virtual(self):
-        return self.root is not None
-
-    def _write(self):
-        tmp = self.root / "rig.json.tmp"
-        tmp.write_text(json.dumps(self.state))
-        os.replace(tmp, self.root / "rig.json")
-        time.sleep(APPLY_S)
+        return self.board is not None
 
     def _do(self, instruction, **change):
         self.state.update(change)
         self.prompter.wait(instruction)
         if self.virtual:
-            self._write()
+            self.board.rig(self.state)
 
     def mount_reference(self, pot):
         which = "1 (nut, D1)" if pot == "pot1" else "2 (output block, D2)"
@@ -97,30 +86,19 @@ class Rig:
         code = float(records[:, acquire.COL["raw_ref"]].astype(float).mean())
         return zero + span * code / ((1 << self.adc_bits) - 1)
 
-    def gauge_reading_n(self, question="Force gauge reading (N):", max_age_s=1.0, beat=None):
+    def gauge_reading_n(self, question="Force gauge reading (N):", beat=None):
         """The force gauge's reading: from the virtual rig's display, else typed by the person.
         `beat` (e.g. client.heartbeat_if_due) is called while waiting for a fresh display: the
         motor may be running meanwhile, and the firmware stops it after 1 s without the host."""
         if not self.virtual:
             return self.prompter.number(question)
-        path = self.root / "gauge.json"
-        deadline = time.monotonic() + 10.0
-        while time.monotonic() < deadline:
-            if beat is not None:
-                beat()
-            try:
-                if time.time() - path.stat().st_mtime <= max_age_s:
-                    return float(json.loads(path.read_text())["force_n"])
-            except (OSError, ValueError, KeyError):
-                pass
-            time.sleep(0.05)
-        raise UserError("the virtual rig shows no gauge reading (is the gauge hooked?)")
+        return float(self.board.gauge(beat=beat)["force_n"])
 
 
-def gauge_scale(board, zero_n=None, span_n=None):
+def gauge_scale(actuator, zero_n=None, span_n=None):
     """(N at code 0, N over full scale) of the gauge's analog output: options first, else the
-    simulated board's gauge (fraction = zero_fraction + N / n_per_fraction)."""
-    g = (board.get("actuator") or {}).get("gauge") or {}
+    simulated actuator's gauge (fraction = zero_fraction + N / n_per_fraction)."""
+    g = (actuator or {}).get("gauge") or {}
     if zero_n is None and "zero_fraction" in g:
         zero_n = -float(g["zero_fraction"]) * float(g["n_per_fraction"])
     if span_n is None and "n_per_fraction" in g:
@@ -130,9 +108,10 @@ def gauge_scale(board, zero_n=None, span_n=None):
     return float(zero_n), float(span_n)
 
 
-def reference_scale(board, zero_mm=None, span_mm=None):
-    """(zero_mm, span_mm) of the reference sensor: options first, else the simulated board's file."""
-    ref = (board.get("actuator") or {}).get("reference") or {}
+def reference_scale(actuator, zero_mm=None, span_mm=None):
+    """(zero_mm, span_mm) of the reference sensor: options first, else the simulated actuator's
+    (`actuator`: its description, None on a real bench)."""
+    ref = (actuator or {}).get("reference") or {}
     zero = zero_mm if zero_mm is not None else ref.get("zero_mm")
     span = span_mm if span_mm is not None else ref.get("span_mm")
     if zero is None or span is None:

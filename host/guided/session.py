@@ -15,12 +15,12 @@ from host.link.flashing import resolve_board
 
 
 class Session:
-    def __init__(self, port, board=None, calibration=None, say=print):
+    def __init__(self, port, board=None, calibration=None, say=print, uf2=None):
         self.board_arg = board
         self.calibration = Path(calibration) if calibration else None
         self.say = say
         existing = self.calibration if self.calibration and self.calibration.is_file() else None
-        self.where = open_port(port, board, existing)
+        self.where = open_port(port, board, existing, uf2=uf2, progress=say)
         self.port = self.where.port
         self.path = None
         self.client = None
@@ -35,11 +35,18 @@ class Session:
     def root(self):
         return self.where.root
 
+    @property
+    def actuator(self):
+        """The simulated actuator's description on a virtual board, None on a real one."""
+        return self.virtual.actuator if self.virtual is not None else None
+
     def __enter__(self):
         try:
             self.path = self.where.open().path
-            if self.virtual is not None:
+            if self.virtual is not None and self.root is not None:
                 self.say("virtual board started on %s (filesystem %s)" % (self.path, self.root))
+            elif self.virtual is not None:
+                self.say("emulated %s started on %s" % (self.virtual.chip, self.path))
                 self.board_path, self.board = resolve_board(str(self.where.board_path))
             self.client = BoardClient(self.path)
             if self.board is None:

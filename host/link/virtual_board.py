@@ -55,7 +55,8 @@ _FRIENDLY_PROMPT = b">>> "
 # must still get its Ctrl-C).
 BOOT_INPUT_HOLD_S = 1.0
 
-RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
+RESET_EXIT = 77
+RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it  # exit status of machine.reset() on the virtual board: boot main.py again
 
 # Runs first in every micropython process: mount the board's flash as "/"; install as `machine`
 # the simulated actuator's (boards/sim/machine.py, built from board.json) when the board file
@@ -173,6 +174,8 @@ def _set_pty_mode(fd):
 class VirtualBoard:
     """A simulated board on a pseudo-terminal. Use as a context manager or start()/stop()."""
 
+    chip = None  # the MicroPython unix port, not an emulated chip
+
     def __init__(self, board=DEFAULT_BOARD, calibration=None, root=None, factory=True, log=None, load=None):
         self.board_path = Path(board)
         if not self.board_path.is_file():
@@ -233,19 +236,52 @@ class VirtualBoard:
         if self._own_root:
             shutil.rmtree(self.root, ignore_errors=True)
 
-    def set_load(self, load):
-        """Hook a load on the block (a parse_load dict): rewrites rig.json atomically, keeping its
-        other entries; the running firmware's rig applies it within ~100 ms."""
+    # -- the bench rig: what a person mounts, through rig.json and gauge.json in the board's flash
+    # (boards/sim/bench_rig.py polls them from the firmware's main loop) ------------------
+    @property
+    def actuator(self):
+        """The simulated actuator's description (the board file's "actuator")."""
+        return json.loads(self.board_path.read_text()).get("actuator") or {}
+
+    def rig(self, rig, wait=True):
+        """Mount what `rig` says (bench_rig.apply's dict: reference, load, fault), keeping the other
+        entries of rig.json; rewritten atomically, applied by the firmware's rig within ~100 ms
+        (`wait`: return after a few of its polls)."""
         rig_path = self.root / "rig.json"
         try:
-            rig = json.loads(rig_path.read_text())
+            state = json.loads(rig_path.read_text())
         except (OSError, ValueError):
-            rig = {}
-        rig["load"] = dict(load)
+            state = {}
+        state.update(rig)
         tmp = self.root / "rig.json.tmp"
-        tmp.write_text(json.dumps(rig))
+        tmp.write_text(json.dumps(state))
         os.replace(tmp, rig_path)
+        if wait:
+            time.sleep(RIG_APPLY_S)
+        return state
+
+    def set_load(self, load):
+        """Hook a load on the block (a parse_load dict); the running firmware's rig applies it
+        within ~100 ms."""
+        self.rig({"load": dict(load)}, wait=False)
         self.load = dict(load)
+
+    def gauge(self, max_age_s=1.0, beat=None, timeout_s=10.0):
+        """The force gauge's display, {"force_n", "t_s"}, once the rig has refreshed it within
+        `max_age_s`. `beat` (e.g. client.heartbeat_if_due) is called while waiting: the motor may
+        be running meanwhile, and the firmware stops it after 1 s without the host."""
+        path = self.root / "gauge.json"
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if beat is not None:
+                beat()
+            try:
+                if time.time() - path.stat().st_mtime <= max_age_s:
+                    return json.loads(path.read_text())
+            except (OSError, ValueError, KeyError):
+                pass
+            time.sleep(0.05)
+        raise UserError("the virtual rig shows no gauge reading (is the gauge hooked?)")
 
     def __enter__(self):
         self.start()

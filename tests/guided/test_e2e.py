@@ -87,8 +87,8 @@ def test_closed_loop_error_is_smaller_after_calibration(full_run, tmp_path):
     nominal = variants.write_nominal(tmp_path / "nominal.json", out, accepted["pots"].data, 12)
     prompter = Prompter(yes=True, out=lambda s: None)
     with Session("sim", None, out, say=lambda s: None) as session:
-        scale = reference_scale(session.board)
-        rig = Rig(prompter, session.root)
+        scale = reference_scale(session.actuator)
+        rig = Rig(prompter, session.virtual)
         zero = displacement.zero_at_stops(session, rig, scale)
         after = displacement.run_targets(session, rig, scale, zero, targets=(3, 30, 57))
         session.flash(nominal)
@@ -128,8 +128,8 @@ def test_a_lifted_wiper_is_refused_under_yes(tmp_path):
     prompter = Prompter(yes=True, out=said.append)
     opts = Options(out=tmp_path / "c.json", out_dir=tmp_path, duty=3000, flash=False)
     with Session("sim", None, None, say=said.append) as session:
-        opts.ref_scale = reference_scale(session.board)
-        rig = Rig(prompter, session.root)
+        opts.ref_scale = reference_scale(session.actuator)
+        rig = Rig(prompter, session.virtual)
         rig.state["fault"] = {"channel": "pot2", "rail": "low"}
         with pytest.raises(UserError, match=r"pot2 reads 0 at the low rail \(wiper lifted"):
             run_steps(session, rig, prompter, ("pots",), opts)

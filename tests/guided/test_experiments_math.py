@@ -126,6 +126,7 @@ def test_a_stopped_experiment_keeps_what_it_measured(tmp_path, monkeypatch, caps
     class FakeSession:
         def __init__(self, *a, **k):
             self.board = {"name": "sim", "adc_bits": 12, "simulated": True}
+            self.actuator = {}
 
         def __enter__(self):
             return self

@@ -55,8 +55,8 @@ def test_the_end_stops_frame_the_stroke_and_both_ends_are_reached(split_board, t
         assert status["end_stops_um"] == [round(lo * 1000), round(hi * 1000)]
         # the soft limits: the parameters (0.5, 59.5 mm), but never within stop_margin_um of a stop
         assert status["stroke_um"] == [max(500, round(lo * 1000) + 300), min(59500, round(hi * 1000) - 300)]
-        scale = reference_scale(session.board)
-        rig = Rig(prompter, session.root)
+        scale = reference_scale(session.actuator)
+        rig = Rig(prompter, session.virtual)
         zero = displacement.zero_at_stops(session, rig, scale)
         rows = displacement.run_targets(session, rig, scale, zero, targets=(1, 30, 59))
     assert all(r["settled"] for r in rows), rows

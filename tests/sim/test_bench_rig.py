@@ -85,6 +85,8 @@ def test_waiting_for_a_fresh_gauge_display_keeps_heartbeating(tmp_path):
         if len(beats) == 3:  # the rig refreshes the display after a few polls
             display.write_text(json.dumps({"force_n": 2.5, "t_s": 1.0}))
 
-    rig = Rig(Prompter(yes=True, out=lambda s: None), tmp_path)
+    from host.link.virtual_board import VirtualBoard
+
+    rig = Rig(Prompter(yes=True, out=lambda s: None), VirtualBoard(root=tmp_path))
     assert rig.gauge_reading_n(beat=beat) == 2.5
     assert len(beats) == 3  # one before each look at the display: two stale, then the fresh one
