@@ -78,9 +78,9 @@ class Board:
     stops it."""
 
     def __init__(self, port="auto", board=None, calibration=None, load=None, require_calibration=False,
-                 stop_on_exit=True):
+                 stop_on_exit=True, uf2=None):
         self.stop_on_exit = stop_on_exit
-        self._opener = open_board(port, board, calibration, _load(load), require_calibration=require_calibration)
+        self._opener = open_board(port, board, calibration, _load(load), uf2=uf2, require_calibration=require_calibration)
         self.client = self._opener.__enter__()
         self._link = self.client  # a Recording while log() is active: motions stream through it
 
@@ -91,7 +91,8 @@ class Board:
 
     @property
     def virtual(self):
-        """The VirtualBoard behind port "sim" (its files, its load), else None."""
+        """The virtual board behind port "sim" (VirtualBoard: its files, its load) or "sim:rp2040"
+        (EmulatedPico: its rig, its actuator's state), else None."""
         return self._opener.virtual
 
     def close(self, stop=True):
@@ -262,8 +263,8 @@ class Board:
         self.client.close()
         try:
             virtual = self.virtual is not None
-            flash(port, board or ("sim" if virtual else None), calibration, progress=lambda text: None,
-                  ask_board=not virtual)
+            flash(port, board or (str(self._opener.where.board_path) if virtual else None), calibration,
+                  progress=lambda text: None, ask_board=not virtual)
         finally:
             self.client = self._opener.client = BoardClient(port)
             self._link = self.client

@@ -38,20 +38,32 @@ def load_option(text):
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def add_load_argument(parser, help_prefix="for --port sim: "):
+def add_load_argument(parser, help_prefix="for --port sim or sim:rp2040: "):
     from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR
 
     parser.add_argument("--load", type=load_option, default=None, metavar=LOAD_METAVAR, help=help_prefix + LOAD_HELP)
 
 
+PORT_HELP = ("serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this command (the "
+             "firmware on the MicroPython unix port), 'sim:rp2040' for an emulated Pico started for it (the Pico's "
+             "MicroPython, --uf2, on rp2040js; the firmware installed with host flash), or 'auto' (the default: the "
+             "one board `host ports` finds)")
+
+
+def add_uf2_argument(parser):
+    from host.link.emulated_pico.board import UF2_HELP
+
+    parser.add_argument("--uf2", default=None, metavar="FILE", help="for --port sim:rp2040: " + UF2_HELP)
+
+
 def add_port_arguments(parser):
-    """--port (and --board/--calibration/--load for `--port sim`) shared by the board commands."""
-    parser.add_argument("--port", default="auto",
-                        help="serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this "
-                        "command, or 'auto' (the default: the one board `host ports` finds)")
-    parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json)")
-    parser.add_argument("--calibration", default=None, help="calibration.json for --port sim")
+    """--port (and --board/--calibration/--load/--uf2 for a virtual board) shared by the board commands."""
+    parser.add_argument("--port", default="auto", help=PORT_HELP)
+    parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json; "
+                        "sim:rp2040: boards/pico.json)")
+    parser.add_argument("--calibration", default=None, help="calibration.json for --port sim or sim:rp2040")
     add_load_argument(parser)
+    add_uf2_argument(parser)
 
 
 def live_arguments(parser, with_log=True):

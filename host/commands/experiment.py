@@ -3,7 +3,7 @@
 import sys
 from pathlib import Path
 
-from host.commands._options import ranged
+from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.commands.calibrate import add_gauge_arguments, add_method_arguments, make_rig, method_options
 from host.errors import UserError
 
@@ -14,11 +14,12 @@ def add_parser(subparsers):
         help="run the paper's experiments (calibration, Figs. 3a/5/7/8, dead zone, Table 1) and write a report",
         description="Calibrate (pots, assembly, force, as `host calibrate`), then run the paper's "
         "experiments and write DIR/report.md with PNG figures, each number beside the paper's. "
-        "With --port sim everything runs on the virtual board (about 5 minutes).",
+        "With --port sim everything runs on the virtual board (about 5 minutes); with --port sim:rp2040 on an emulated Pico.",
     )
     p.add_argument("name", choices=("paper",), help="which experiment set (paper)")
     p.add_argument("--port", default="auto",
-                   help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
+                   help=PORT_HELP)
+    add_uf2_argument(p)
     p.add_argument("--out", required=True, metavar="DIR", help="report directory (report.md, PNGs, calibration files)")
     p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports)")
     p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")
@@ -44,12 +45,14 @@ def run(args):
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise UserError("cannot create %s: %s" % (out_dir, exc.strerror)) from None
-    prompter = Prompter(yes=args.yes or args.port == "sim")
+    from host.link.connect import virtual_kind
+
+    prompter = Prompter(yes=args.yes or virtual_kind(args.port) is not None)
     opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), fix=args.fix,
                    **method_options(args))
     results = {}
     try:
-        with Session(args.port, args.board, None, say=prompter.say) as session:
+        with Session(args.port, args.board, None, say=prompter.say, uf2=args.uf2) as session:
             opts.ref_scale = reference_scale(session.actuator, args.ref_zero_mm, args.ref_span_mm)
             rig = make_rig(args, prompter, session)
             path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say, results=results)

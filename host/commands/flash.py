@@ -1,6 +1,6 @@
 """`host flash`: compile and install the firmware, board file and calibration, then verify."""
 
-from host.commands._options import add_load_argument
+from host.commands._options import PORT_HELP, add_uf2_argument, add_load_argument
 from host.errors import UserError
 from host.link.connect import open_port
 from host.link.flashing import flash
@@ -12,7 +12,8 @@ def add_parser(subparsers):
                               "board file and calibration through mpremote, swap it in with atomic renames, verify CRCs, "
                               "reset and check the firmware answers. Interrupting it leaves the previous install usable.")
     p.add_argument("--port", default="auto",
-                   help="serial port (e.g. /dev/ttyACM0), 'sim' for a virtual board, or 'auto' (default: the one board found)")
+                   help=PORT_HELP)
+    add_uf2_argument(p)
     p.add_argument("--board", default=None,
                    help="board name in boards/ or a board file path (default: what the board's firmware reports; sim for --port sim)")
     p.add_argument("--replace-board", action="store_true",
@@ -26,7 +27,7 @@ def run(args):
     def progress(text):
         print(text, flush=True)
 
-    with open_port(args.port, args.board, load=args.load, factory=False) as where:
+    with open_port(args.port, args.board, load=args.load, factory=False, uf2=args.uf2) as where:
         if where.virtual is not None:  # an empty flash: nothing to ask, the board file is the virtual board's
             status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False)
         else:

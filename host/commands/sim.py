@@ -1,9 +1,10 @@
-"""`host sim`: run a virtual board (micropython + the firmware behind a pty) until Ctrl-C or SIGTERM."""
+"""`host sim`: run a virtual board until Ctrl-C or SIGTERM: the firmware on the MicroPython unix port
+(the default) or an emulated Pico (`--chip rp2040`: the Pico's MicroPython on rp2040js)."""
 
 import signal
 import time
 
-from host.commands._options import add_load_argument
+from host.commands._options import add_load_argument, add_uf2_argument
 from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
@@ -15,13 +16,27 @@ class _Stopped(Exception):
 
 def add_parser(subparsers):
     p = subparsers.add_parser("sim", help="start a virtual board and print its serial device path",
-                              description="Start the virtual board: the MicroPython unix port running the firmware "
-                              "with the simulated actuator behind a pseudo-terminal. Any tool (host --port, mpremote "
-                              "connect, pyserial) can open the printed path. Runs until Ctrl-C, SIGTERM or SIGHUP, "
-                              "which stop micropython and remove the temporary flash directory.")
-    p.add_argument("--board", default=str(DEFAULT_BOARD), help="board file (default boards/sim.json)")
-    p.add_argument("--calibration", default=None, help="calibration.json to put on the virtual board's flash")
-    p.add_argument("--root", default=None, help="directory to use as the board's flash (default: a temp dir, removed at the end)")
+                              description="Start a virtual board behind a pseudo-terminal and print its path: by "
+                              "default the MicroPython unix port running the firmware with the simulated actuator; "
+                              "with --chip rp2040 an emulated Raspberry Pi Pico (the Pico's own MicroPython, --uf2, "
+                              "on the rp2040js emulator) with the simulated actuator wired to the pins of "
+                              "boards/pico.json, the firmware installed on it with host flash. Any tool (host --port, "
+                              "mpremote connect, pyserial) can open the printed path. Runs until Ctrl-C, SIGTERM or "
+                              "SIGHUP.")
+    p.add_argument("--chip", choices=("unix", "rp2040"), default="unix",
+                   help="unix (default): the MicroPython unix port; rp2040: an emulated Pico")
+    p.add_argument("--board", default=None, help="board file (default boards/sim.json; --chip rp2040: boards/pico.json)")
+    p.add_argument("--calibration", default=None, help="calibration.json to put on the board (--chip rp2040: "
+                   "installed with the firmware by host flash)")
+    p.add_argument("--root", default=None, help="directory to use as the unix-port board's flash (default: a temp dir, "
+                   "removed at the end)")
+    add_uf2_argument(p)
+    p.add_argument("--actuator", default=None, metavar="FILE", help="--chip rp2040: the simulated actuator wired to the "
+                   "Pico, a board file with an \"actuator\" section (default boards/sim.json)")
+    p.add_argument("--flash-image", default=None, metavar="FILE", help="--chip rp2040: keep the Pico's filesystem in "
+                   "this file between runs (created when missing; default: a fresh, empty flash each run)")
+    p.add_argument("--no-install", action="store_true", help="--chip rp2040: start with the flash as it is (empty, or "
+                   "--flash-image's) instead of installing the firmware; install it yourself with host flash")
     add_load_argument(p, help_prefix="")
     p.set_defaults(func=run)
 
@@ -30,13 +45,39 @@ def _raise_stopped(signum, frame):
     raise _Stopped(signum)
 
 
+def _emulated_pico(args):
+    from host.link.emulated_pico.board import PICO_BOARD, SIM_BOARD, EmulatedPico
+    from host.link.flashing import flash, resolve_board
+    from host.terminal import note
+
+    board_path, _ = resolve_board(args.board or str(PICO_BOARD))
+    pico = EmulatedPico(uf2=args.uf2, board=board_path, actuator=args.actuator or SIM_BOARD,
+                        flash_image=args.flash_image, load=args.load, log=note)
+    path = pico.start()
+    if not args.no_install:
+        note("installing the firmware on the emulated Pico with host flash")
+        try:
+            flash(path, str(board_path), args.calibration, progress=lambda m: note("  " + m), ask_board=False)
+        except BaseException:
+            pico.stop()
+            raise
+    return pico, path, "emulated Pico (%s)" % pico.uf2
+
+
 def run(args):
-    board = VirtualBoard(board=args.board, calibration=args.calibration, root=args.root, load=args.load)
+    if args.chip == "rp2040":
+        board, path, what = _emulated_pico(args)
+    else:
+        board = VirtualBoard(board=args.board or str(DEFAULT_BOARD), calibration=args.calibration, root=args.root,
+                             load=args.load)
+        path, what = None, None
     previous = {s: signal.signal(s, _raise_stopped) for s in _STOP_SIGNALS}
     try:
-        path = board.start()
+        if path is None:
+            path = board.start()
+            what = "virtual board (flash in %s)" % board.root
         print(path, flush=True)
-        print("virtual board running (flash in %s); Ctrl-C to stop" % board.root, flush=True)
+        print("%s running; Ctrl-C to stop" % what, flush=True)
         while True:
             time.sleep(0.5)
     except (KeyboardInterrupt, _Stopped):

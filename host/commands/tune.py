@@ -106,7 +106,7 @@ def run(args):
     def progress(i, n, gains):
         progress_line("trial %d/%d: %s" % (i + 1, n, " ".join("%s=%d" % kv for kv in gains.items())))
 
-    with open_board(args.port, args.board, args.calibration, args.load, require_calibration=True) as board:
+    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, require_calibration=True) as board:
         trials, chosen = tune(board, args.mode, int(round(start / scale)), int(round(step / scale)), args.duration,
                               band / scale, grid=grid, keep=args.apply or args.save, progress=progress)
         end_progress()

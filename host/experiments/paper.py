@@ -123,9 +123,11 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     t0 = time.monotonic()
     timings = {}
     results = {} if results is None else results
-    results.update({"board": session.board["name"], "simulated": bool(session.board.get("simulated")), "port": session.port})
+    results.update({"board": session.board["name"], "simulated": session.virtual is not None,
+                    "chip": getattr(session.virtual, "chip", None), "port": session.port,
+                    "interpreter": (session.client.status_info or {}).get("interpreter")})
     progress = Progress(out_dir, results)
-    block = (session.board.get("actuator") or {}).get("block") or {}
+    block = (session.actuator or {}).get("block") or {}
     results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
     results["preload_n"] = PRELOAD_N
     results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]

@@ -54,26 +54,43 @@ def _f(v, digits=3):
     return "-" if v is None or (isinstance(v, float) and math.isnan(v)) else ("%.*f" % (digits, v))
 
 
+def _what_was_simulated(r):
+    """Which board ran the firmware, and what stood in for the actuator and the rig."""
+    if r.get("chip") == "rp2040":
+        board = ("The board is an emulated Raspberry Pi Pico (`--port sim:rp2040`): MicroPython's own rp2 port (%s, "
+                 "the firmware a user flashes onto a Pico) on the rp2040js emulator of the RP2040, one Cortex-M0+ core "
+                 "in emulated time, with the real firmware installed by `host flash` over its emulated USB serial. Its "
+                 "ADC inputs read, and its PWM slices drive, the physical model in `boards/sim/` wired to the pins of "
+                 "boards/pico.json, advanced in lockstep with the chip (host/link/emulated_pico/)"
+                 % (r.get("interpreter") or "micropython"))
+        rig = "is applied to the model directly by the emulated Pico's bench process"
+    else:
+        board = ("The board is the real firmware on the MicroPython unix port behind a pty (`--port sim`); ADC, PWM "
+                 "and timer are the physical model in `boards/sim/`")
+        rig = "is applied by `boards/sim/bench_rig.py`"
+    return ("**What was simulated.** %s (motor, lead screw, preloaded hardening springs, block with Coulomb friction "
+            "and end stops, two knee-shaped pots with a mounting error, a reference sensor mounted in parallel with a "
+            "pot, and a force gauge on a fibre whose zero drifts; docs/simulated-actuator.md). The bench rig (which pot "
+            "carries the reference, the gauge hooked or not) %s. None of this is the paper's hardware: the comparison "
+            "shows whether the method reproduces the paper's effects, not the paper's actuator." % (board, rig))
+
+
 def write(out_dir, r, opts, command=None):
     out_dir = Path(out_dir)
     command = command or "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host experiment paper"
     L = []
     add = L.append
     sim = r["simulated"]
-    add("# The paper's experiments, measured on %s" % ("the simulated actuator (virtual board)" if sim else "board " + r["board"]))
+    where = ("the simulated actuator (virtual board)" if not r.get("chip") else
+             "the simulated actuator on an emulated %s (board %s)" % ({"rp2040": "Raspberry Pi Pico"}.get(r["chip"], r["chip"]), r["board"]))
+    add("# The paper's experiments, measured on %s" % (where if sim else "board " + r["board"]))
     add("")
     add("Made by `%s` on %s in %.0f s of wall time. Every number below was measured in that run; "
         "the paper's numbers are quoted from the paper's section 5." % (
             command, datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%d %H:%M UTC"), r["timings"]["total"]))
     add("")
     if sim:
-        add("**What was simulated.** The board is the real firmware on the MicroPython unix port behind a pty "
-            "(`--port sim`); ADC, PWM and timer are the physical model in `boards/sim/` (motor, lead screw, "
-            "preloaded hardening springs, block with Coulomb friction and end stops, two knee-shaped pots with a "
-            "mounting error, a reference sensor mounted in parallel with a pot, and a force gauge on a fibre whose "
-            "zero drifts; docs/simulated-actuator.md). The bench rig (which pot carries the reference, the gauge "
-            "hooked or not) is applied by `boards/sim/bench_rig.py`. None of this is the paper's hardware: the "
-            "comparison shows whether the method reproduces the paper's effects, not the paper's actuator.")
+        add(_what_was_simulated(r))
         add("")
     m0 = r.get("method", {})
     add("**Shortened from the paper** (to keep the run to a few minutes): %d force identification rounds per gauge "

@@ -1,9 +1,13 @@
-"""Where a command finds its board: one function for every `--port` (a serial device, `auto`, `sim`).
+"""Where a command finds its board: one function for every `--port` (a serial device, `auto`,
+`sim`, `sim:rp2040`).
 
 `open_port(port, ...)` resolves the port (`auto`: the one board `host ports` finds) and, for
-`sim`, starts a virtual board for the life of the context: its serial path, its filesystem root
-(the rig reads what is mounted from there) and its board file stay valid while clients come and
-go, so a guided calibration can close its client, flash the board and open a new one.
+`sim`, starts a virtual board for the life of the context (the firmware on the MicroPython unix
+port, host/link/virtual_board.py); for `sim:rp2040` an emulated Pico (the Pico's MicroPython on
+rp2040js, host/link/emulated_pico/), onto which the firmware is installed the way it is onto a
+real Pico, by `host flash` over its USB serial. Either one's serial path, rig and board file stay
+valid while clients come and go, so a guided calibration can close its client, flash the board
+and open a new one.
 `open_board(port, ...)` is open_port with a BoardClient on it (the handshake done), for the
 commands that only talk to the board; `ask_firmware(port)` is the handshake alone.
 """
@@ -14,12 +18,24 @@ from host.errors import UserError
 from host.link.board_client import BoardClient
 
 SIM = "sim"
+CHIPS = ("rp2040",)  # --port sim:CHIP: an emulated chip running the board's own MicroPython
+
+
+def virtual_kind(port):
+    """None for a port that is not a virtual board, "" for `sim`, the chip for `sim:CHIP`."""
+    kind, sep, chip = str(port).partition(":")
+    if kind != SIM:
+        return None
+    if sep and chip not in CHIPS:
+        raise UserError("unknown emulated chip in --port %s: sim (the MicroPython unix port) or %s"
+                        % (port, ", ".join("sim:" + c for c in CHIPS)))
+    return chip
 
 
 class BoardPort:
     """The serial path of a board for one command; for `sim` the virtual board behind it."""
 
-    def __init__(self, port, board=None, calibration=None, load=None, factory=True):
+    def __init__(self, port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None):
         from host.link.ports import resolve
 
         self.port = resolve(port)
@@ -27,6 +43,8 @@ class BoardPort:
         self.calibration = calibration
         self.load = load
         self.factory = factory
+        self.uf2 = uf2
+        self.progress = progress
         self.virtual = None
         self.path = None
 
@@ -41,11 +59,14 @@ class BoardPort:
         return self.virtual.board_path if self.virtual is not None else None
 
     def open(self):
-        if self.port != SIM:
+        chip = virtual_kind(self.port)
+        if chip is None:
             if self.load is not None:
                 raise UserError("a load can be hooked only on a virtual board (port sim); on a bench, hook it by hand")
             self.path = self.port
             return self
+        if chip == "rp2040":
+            return self._open_pico()
         from host.link.flashing import resolve_board
         from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
 
@@ -57,6 +78,23 @@ class BoardPort:
         self.virtual = VirtualBoard(board=board_path, calibration=self.calibration, load=self.load,
                                     factory=self.factory)
         self.path = self.virtual.start()
+        return self
+
+    def _open_pico(self):
+        from host.link.emulated_pico.board import PICO_BOARD, EmulatedPico
+        from host.link.flashing import flash, resolve_board
+
+        board_path, board = resolve_board(self.board or str(PICO_BOARD))
+        if board.get("mcu") != "RP2040":
+            raise UserError("an emulated Pico runs an RP2040 board file, not %s (mcu %s)" % (board_path, board.get("mcu")))
+        if self.calibration is not None and not Path(self.calibration).is_file():
+            raise UserError("calibration file not found: %s" % self.calibration)
+        say = self.progress or _note
+        self.virtual = EmulatedPico(uf2=self.uf2, board=board_path, load=self.load, log=say)
+        self.path = self.virtual.start()
+        if self.factory:  # as a person does with a new Pico: host flash, over its USB serial
+            say("emulated Pico on %s: installing the firmware with host flash" % self.path)
+            flash(self.path, str(board_path), self.calibration, progress=lambda m: say("  flash: " + m), ask_board=False)
         return self
 
     def close(self):
@@ -75,19 +113,28 @@ class BoardPort:
         self.close()
 
 
-def open_port(port, board=None, calibration=None, load=None, factory=True):
+def _note(text):
+    from host.terminal import note
+
+    note(text)
+
+
+def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None):
     """A BoardPort for `port` (use as a context manager): a device path as it is, `auto` resolved,
     `sim` a virtual board with `board` (name or file, default boards/sim.json), `calibration` on
     its flash and `load` (a host.link.virtual_board.parse_load dict) hooked on its block;
-    `factory=False` leaves its flash empty (for `host flash`)."""
-    return BoardPort(port, board, calibration, load, factory)
+    `sim:rp2040` an emulated Pico running the MicroPython `uf2` (default $LSEA_PICO_UF2) with
+    `board` (default boards/pico.json), our firmware and `calibration` installed by host flash;
+    `factory=False` leaves its flash empty (for `host flash`). `progress(text)`: what a starting
+    emulated Pico says (default: progress lines on stderr)."""
+    return BoardPort(port, board, calibration, load, factory, uf2, progress)
 
 
 class open_board:
     """Context manager: a BoardClient on `port` (any form open_port takes), handshake done."""
 
-    def __init__(self, port, board=None, calibration=None, load=None, **client_options):
-        self.where = open_port(port, board, calibration, load)
+    def __init__(self, port, board=None, calibration=None, load=None, uf2=None, **client_options):
+        self.where = open_port(port, board, calibration, load, uf2=uf2)
         self.options = client_options
         self.client = None
 
