@@ -9,6 +9,7 @@ work; closed-loop modes are refused with the reason, and status() shows it.
 """
 
 import sys
+import time
 from array import array
 
 from firmware import hal
@@ -25,6 +26,10 @@ from firmware.telemetry import Ring
 
 FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
 EXIT_TEXT_MAX = 200
+# The main loop's passes (link, host watchdog) are at most this far apart when there is nothing
+# to do. A pass costs about 0.2 ms of an RP2040; run at every interrupt (the step's, USB's), as
+# the emulated Pico showed (docs/emulated-pico.md), passes kept its CPU about 70 % busy at rest.
+PASS_MS = 8
 # What the exit file says while run() runs: if the next boot still finds it, run() never got to
 # its finally (power loss, hard reset, watchdog, crash).
 EXIT_RUNNING = "none recorded: run() was still running (power loss, hard reset, watchdog or crash)"
@@ -35,6 +40,35 @@ try:
     micropython.alloc_emergency_exception_buf(100)  # tracebacks from the timer IRQ
 except (ImportError, AttributeError):
     pass
+
+
+def _rest(idle, waiting):
+    """Between two passes of the main loop: idle (a board sleeps until its next interrupt) until
+    PASS_MS have passed, or sooner when `waiting()` (the link's) says there is input; without
+    `waiting`, one idle(). At 1 kHz a pass finds up to 8 records to send, half a frame."""
+    if waiting is None:
+        idle()
+        return
+    deadline = _ticks_add(_ticks_ms(), PASS_MS)
+    idle()
+    while not waiting() and _ticks_diff(deadline, _ticks_ms()) > 0:
+        idle()
+
+
+try:
+    _ticks_ms = time.ticks_ms
+    _ticks_add = time.ticks_add
+    _ticks_diff = time.ticks_diff
+except AttributeError:  # CPython
+
+    def _ticks_ms():
+        return int(time.monotonic() * 1000)
+
+    def _ticks_add(a, b):
+        return a + b
+
+    def _ticks_diff(a, b):
+        return a - b
 
 
 def _read_exit(path):
@@ -416,12 +450,13 @@ class App:
         try:
             self._write_exit(EXIT_RUNNING)
             self.start()
+            waiting = getattr(link, "waiting", None)
             while not self._quit:
                 if link is not None:
                     link.poll()
                 self.watch_host()
                 if idle is not None:
-                    idle()
+                    _rest(idle, waiting)
         except BaseException as exc:  # KeyboardInterrupt and SystemExit too
             try:
                 self.shutdown()  # the motor off before anything else

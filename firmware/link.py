@@ -42,6 +42,7 @@ class Link:
         self._pollable = stdin if stdin is not None else sys.stdin
         self._stdin = stdin if stdin is not None else getattr(sys.stdin, "buffer", sys.stdin)
         self._poller = None
+        self._ipoll = None
         self._line = bytearray(_MAX_LINE + 1)
         self._n = 0
         self._overflow = False
@@ -68,26 +69,30 @@ class Link:
         self.send_telemetry()
 
     def read_input(self):
-        if self._poller is None:
-            self._poller = select.poll()
-            self._poller.register(self._pollable, select.POLLIN)
         byte = self._byte
         budget = _INPUT_PER_POLL
-        while budget > 0 and self._ready():
+        while budget > 0 and self.waiting():
             if not self._stdin.readinto(byte):
                 return
             self.feed_byte(byte[0])
             budget -= 1
 
-    def _ready(self):
-        poller = self._poller
-        if hasattr(poller, "ipoll"):
-            # MicroPython: ipoll yields the poller's own reused entry, so an idle main loop
-            # that polls thousands of times a second makes no garbage.
-            for _ in poller.ipoll(0):
-                return True
-            return False
-        return bool(poller.poll(0))
+    def waiting(self):
+        """Input to read (App.run also asks it between passes of the main loop, at every
+        wake-up: cheap, and allocation-free on MicroPython)."""
+        ipoll = self._ipoll
+        if ipoll is None:
+            if self._poller is None:
+                self._poller = select.poll()
+                self._poller.register(self._pollable, select.POLLIN)
+                # MicroPython: ipoll yields the poller's own reused entry, so an idle main loop
+                # that polls thousands of times a second makes no garbage
+                self._ipoll = getattr(self._poller, "ipoll", None)
+                return self.waiting()
+            return bool(self._poller.poll(0))
+        for _ in ipoll(0):
+            return True
+        return False
 
     def feed(self, data):
         """Handle a chunk of input bytes (used by tests and by read_input one byte at a time)."""

@@ -230,3 +230,28 @@ def test_a_calibration_whose_evaluation_fails_leaves_the_board_running_without_i
 def test_temporary_parameters_come_back_when_the_host_goes_silent(data_path):
     here, there = both("case_temporary_params_come_back_when_the_host_goes_silent(PATH)", data_path)
     assert here == there
+
+
+def test_the_main_loop_rests_between_passes_until_input_or_its_pass_is_due(monkeypatch):
+    """App.run's rest: idle() (a board's sleep until its next interrupt) until PASS_MS after the
+    pass, cut short by input. A pass costs ~0.2 ms of an RP2040: run at every interrupt, the
+    passes kept the emulated Pico's CPU ~70 % busy at rest (docs/emulated-pico.md)."""
+    from firmware import app as app_module
+
+    clock = [0]
+    wakes = []
+
+    def idle():  # the next interrupt comes 1 ms later (the loop timer's)
+        wakes.append(clock[0])
+        clock[0] += 1
+
+    monkeypatch.setattr(app_module, "_ticks_ms", lambda: clock[0])
+    app_module._rest(idle, lambda: False)
+    assert len(wakes) == app_module.PASS_MS > 1  # nothing to do: the pass is due PASS_MS later
+    del wakes[:]
+    clock[0] = 1000
+    app_module._rest(idle, lambda: clock[0] >= 1003)
+    assert wakes == [1000, 1001, 1002]  # input arrived at the third wake-up: the next pass at once
+    del wakes[:]
+    app_module._rest(idle, None)
+    assert len(wakes) == 1  # a link that cannot say (a test's): one idle() per pass, as before
