@@ -33,6 +33,7 @@ RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this
 # interrupted, as a Ctrl-C meant to restart a silent board would cut it short.
 BOOT_WAIT_S = 30.0
 _SOFT_REBOOT = b"soft reboot"
+_PROMPT = b">>> "
 
 
 class BoardError(UserError):
@@ -117,7 +118,8 @@ class BoardClient:
         `wait` lasts: a tool killed halfway through a transfer (mpremote in raw-paste mode) can
         leave the REPL where the first sequence only ends the transfer, and the second one then
         resets. Once it has said so, it is booting, and its hello is waited for up to BOOT_WAIT_S
-        from then, without interrupting it."""
+        from then, without interrupting it, unless it shows the REPL's prompt instead (nothing
+        of ours ran: a board with MicroPython only)."""
         ser = self.serial
         deadline = time.monotonic() + wait
         while True:
@@ -136,6 +138,9 @@ class BoardClient:
                         return True
                 if booting_until is None and _SOFT_REBOOT in self._raw_tail:
                     booting_until = time.monotonic() + BOOT_WAIT_S
+                    self._raw_tail = self._raw_tail[self._raw_tail.rfind(_SOFT_REBOOT):]
+                elif booting_until is not None and _PROMPT in self._raw_tail:
+                    return False  # booted to the REPL: no main.py of ours (a new board), or it ended
             if booting_until is not None or time.monotonic() >= deadline:
                 return False
 
@@ -148,7 +153,7 @@ class BoardClient:
         data = self.serial.read(max(1, self.serial.in_waiting))
         self.received += len(data)
         if data:
-            self._raw_tail = (self._raw_tail + data)[-64:]
+            self._raw_tail = (self._raw_tail + data)[-256:]
         frames = self.decoder.feed(data) if data else []
         for frame in frames:
             if frame.type == P.T_TELEMETRY:

@@ -348,3 +348,15 @@ def test_flash_onto_a_busy_port_says_it_is_busy(calibrations, capsys):
             code = cli.main(["flash", "--port", board.path])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and "busy" in err[0], err
+
+
+def test_a_board_with_micropython_only_is_told_apart_without_waiting_for_a_boot():
+    """What `host flash` meets on a new board: after a soft reset it shows the REPL, not our
+    hello. soft_reset waits out a booting firmware (up to BOOT_WAIT_S: a full calibration's boot
+    takes ~1 s of an RP2040), but a prompt after "soft reboot" means nothing of ours is booting."""
+    from host.link import board_client
+
+    with VirtualBoard(factory=False) as board, BoardClient(board.path, check=False) as client:
+        t0 = time.monotonic()
+        assert client.soft_reset(wait=1.5) is False
+        assert time.monotonic() - t0 < board_client.BOOT_WAIT_S / 2
