@@ -36,6 +36,9 @@ def recover_calibration(path):
 
 def run(board_path="board.json", calibration_path="calibration.json", machine=None, exit_path="last_exit.txt",
         params_path="params.txt"):
+    from firmware.protocol import BOOTING
+
+    print(BOOTING)  # before the slow part: a host waits for the hello instead of resetting again
     from firmware.app import App
 
     app = None

@@ -29,6 +29,10 @@ from firmware.telemetry import RECORD_WORDS
 VERSION = "0.1.0"  # the firmware's, and the host package's (pyproject.toml reads it from here)
 PROTOCOL_VERSION = 1
 SYNC = b"\xa5\x5a"
+# A text line the firmware prints as its boot begins, before the calibration's checks and tables
+# (about a second on an RP2040): a host that sees it after a reset waits for the hello instead of
+# taking the silence for a board without our firmware
+BOOTING = "lsea-kit booting"
 SYNC_WORD = 0x5AA5  # the two sync bytes read as the low half of little-endian word 0
 HEADER_BYTES = 12
 CRC_BYTES = 4

@@ -65,15 +65,14 @@ def _emulated_pico(args):
 
 
 def run(args):
-    if args.chip == "rp2040":
-        board, path, what = _emulated_pico(args)
-    else:
-        board = VirtualBoard(board=args.board or str(DEFAULT_BOARD), calibration=args.calibration, root=args.root,
-                             load=args.load)
-        path, what = None, None
-    previous = {s: signal.signal(s, _raise_stopped) for s in _STOP_SIGNALS}
+    previous = {s: signal.signal(s, _raise_stopped) for s in _STOP_SIGNALS}  # before anything starts
+    board = None
     try:
-        if path is None:
+        if args.chip == "rp2040":
+            board, path, what = _emulated_pico(args)
+        else:
+            board = VirtualBoard(board=args.board or str(DEFAULT_BOARD), calibration=args.calibration,
+                                 root=args.root, load=args.load)
             path = board.start()
             what = "virtual board (flash in %s)" % board.root
         print(path, flush=True)
@@ -87,7 +86,8 @@ def run(args):
         for s in previous:  # a second Ctrl-C or signal must not cut the clean-up short
             signal.signal(s, signal.SIG_IGN)
         try:
-            board.stop()
+            if board is not None:
+                board.stop()
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)

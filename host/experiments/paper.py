@@ -123,7 +123,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     t0 = time.monotonic()
     timings = {}
     results = {} if results is None else results
-    results.update({"board": session.board["name"], "simulated": session.virtual is not None,
+    results.update({"board": session.board["name"], "simulated": session.simulated,
                     "chip": getattr(session.virtual, "chip", None), "port": session.port,
                     "interpreter": (session.client.status_info or {}).get("interpreter")})
     progress = Progress(out_dir, results)

@@ -37,16 +37,28 @@ class Session:
 
     @property
     def actuator(self):
-        """The simulated actuator's description on a virtual board, None on a real one."""
-        return self.virtual.actuator if self.virtual is not None else None
+        """The simulated actuator's description on a virtual board (also one started elsewhere,
+        `host sim`, whose board file says it is simulated), None on a real one."""
+        if self.virtual is not None:
+            return self.virtual.actuator
+        if self.board is not None and self.board.get("simulated"):
+            return self.board.get("actuator")
+        return None
+
+    @property
+    def simulated(self):
+        """Whether the actuator behind this board is the simulated one."""
+        return self.actuator is not None
 
     def __enter__(self):
         try:
             self.path = self.where.open().path
-            if self.virtual is not None and self.root is not None:
-                self.say("virtual board started on %s (filesystem %s)" % (self.path, self.root))
-            elif self.virtual is not None:
-                self.say("emulated %s started on %s" % (self.virtual.chip, self.path))
+            if self.virtual is not None:
+                if self.root is not None:
+                    self.say("virtual board started on %s (filesystem %s)" % (self.path, self.root))
+                else:
+                    self.say("emulated %s started on %s" % (self.virtual.chip, self.path))
+                self.board_path, self.board = resolve_board(str(self.where.board_path))
                 self.board_path, self.board = resolve_board(str(self.where.board_path))
             self.client = BoardClient(self.path)
             if self.board is None:

@@ -27,13 +27,15 @@ from host.link.frames import FrameDecoder
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 PATIENCE_S = 8.0  # wall-clock seconds a request resends before the board counts as not answering
 RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this long without a hello
-# A board that answered the reset with "soft reboot" is booting. With a full calibration the boot
-# (checking each pot curve at every ADC code, tabulating D1* and D2) takes about a second on an
-# RP2040 (docs/emulated-pico.md), several on a slow emulator: it is waited for this long and never
-# interrupted, as a Ctrl-C meant to restart a silent board would cut it short.
+# A board whose firmware has said it is booting (protocol.BOOTING, printed by board_main before
+# the calibration's checks and tables: about a second on an RP2040, docs/emulated-pico.md, several
+# on a slow emulator) is waited for this long and never interrupted, as a Ctrl-C meant to restart
+# a silent board would cut the boot short.
 BOOT_WAIT_S = 30.0
 _SOFT_REBOOT = b"soft reboot"
+_BOOTING = P.BOOTING.encode()
 _PROMPT = b">>> "
+_TEXT_KEPT = 65536  # what soft_reset keeps of the board's output while it waits
 
 
 class BoardError(UserError):
@@ -51,7 +53,7 @@ class BoardClient:
         self.decoder = FrameDecoder()
         self.telemetry = collections.deque()
         self.hellos = 0
-        self._raw_tail = b""  # the last bytes read, frames and text alike (soft_reset looks for "soft reboot")
+        self._text = None  # while soft_reset waits: every byte the board sent since its Ctrl-D
         self._seq = random.randrange(1, P.SEQ_MASK)  # a new session never repeats the last line
         self._last_heartbeat = 0.0
         self.serial = self._open(port)
@@ -114,35 +116,40 @@ class BoardClient:
         """Leave whatever runs (Ctrl-C), go to the friendly REPL (Ctrl-B), soft reset (Ctrl-D):
         a board then boots main.py, i.e. the firmware. True once its hello frame came.
 
-        Until the board says "soft reboot", the sequence is sent again every RESET_RETRY_S while
-        `wait` lasts: a tool killed halfway through a transfer (mpremote in raw-paste mode) can
-        leave the REPL where the first sequence only ends the transfer, and the second one then
-        resets. Once it has said so, it is booting, and its hello is waited for up to BOOT_WAIT_S
-        from then, without interrupting it, unless it shows the REPL's prompt instead (nothing
-        of ours ran: a board with MicroPython only)."""
+        What the board says after the Ctrl-D decides the wait. Our firmware saying it is booting
+        (protocol.BOOTING): its hello is waited for up to BOOT_WAIT_S, the boot never interrupted.
+        The REPL's prompt: nothing of ours runs (a board with MicroPython only, or main.py ended):
+        False at once. Anything else (silence, the raw REPL's banner, another main.py): the
+        sequence is sent again every RESET_RETRY_S while `wait` lasts; a tool killed halfway
+        through a transfer (mpremote in raw-paste mode) can leave the REPL where the first
+        sequence only ends the transfer, and the second one then resets."""
         ser = self.serial
         deadline = time.monotonic() + wait
-        while True:
-            ser.write(b"\r\x03\x03")
-            time.sleep(0.2)
-            ser.write(b"\r\x02")
-            time.sleep(0.2)
-            self._read_frames()  # what came before the reset is not its answer
-            self._raw_tail = b""
-            ser.write(b"\x04")
-            retry = min(deadline, time.monotonic() + RESET_RETRY_S)
-            booting_until = None
-            while time.monotonic() < (booting_until or retry):
-                for frame in self._read_frames():
-                    if frame.type == P.T_HELLO:
-                        return True
-                if booting_until is None and _SOFT_REBOOT in self._raw_tail:
-                    booting_until = time.monotonic() + BOOT_WAIT_S
-                    self._raw_tail = self._raw_tail[self._raw_tail.rfind(_SOFT_REBOOT):]
-                elif booting_until is not None and _PROMPT in self._raw_tail:
-                    return False  # booted to the REPL: no main.py of ours (a new board), or it ended
-            if booting_until is not None or time.monotonic() >= deadline:
-                return False
+        try:
+            while True:
+                ser.write(b"\r\x03\x03")
+                time.sleep(0.2)
+                ser.write(b"\r\x02")
+                time.sleep(0.2)
+                self._text = None
+                self._read_frames()  # what came before the reset is not its answer
+                self._text = b""
+                ser.write(b"\x04")
+                retry = min(deadline, time.monotonic() + RESET_RETRY_S)
+                booting_until = None
+                while time.monotonic() < (booting_until or retry):
+                    for frame in self._read_frames():
+                        if frame.type == P.T_HELLO:
+                            return True
+                    after = self._text[self._text.rfind(_SOFT_REBOOT) + 1:] if _SOFT_REBOOT in self._text else b""
+                    if booting_until is None and _BOOTING in after:
+                        booting_until = time.monotonic() + BOOT_WAIT_S
+                    elif _PROMPT in after:
+                        return False  # booted to the REPL: no main.py of ours (a new board), or it ended
+                if booting_until is not None or time.monotonic() >= deadline:
+                    return False
+        finally:
+            self._text = None
 
     # -- requests ----------------------------------------------------------------------
     def _next_seq(self):
@@ -152,8 +159,8 @@ class BoardClient:
     def _read_frames(self):
         data = self.serial.read(max(1, self.serial.in_waiting))
         self.received += len(data)
-        if data:
-            self._raw_tail = (self._raw_tail + data)[-256:]
+        if data and self._text is not None:
+            self._text = (self._text + data)[-_TEXT_KEPT:]
         frames = self.decoder.feed(data) if data else []
         for frame in frames:
             if frame.type == P.T_TELEMETRY:

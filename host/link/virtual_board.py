@@ -55,8 +55,8 @@ _FRIENDLY_PROMPT = b">>> "
 # must still get its Ctrl-C).
 BOOT_INPUT_HOLD_S = 1.0
 
-RESET_EXIT = 77
-RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it  # exit status of machine.reset() on the virtual board: boot main.py again
+RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
+RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it
 
 # Runs first in every micropython process: mount the board's flash as "/"; install as `machine`
 # the simulated actuator's (boards/sim/machine.py, built from board.json) when the board file

@@ -124,3 +124,16 @@ def test_the_command_line_forms_start_an_emulated_pico_with_the_firmware(tmp_pat
     finally:
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=30) == 0
+
+
+def test_the_emulator_is_pinned_to_one_version():
+    """rp2040js's version is said once in package.json, locked with its integrity hash, and the
+    installer's message names the same one (no ../shared needed)."""
+    from host.link.emulated_pico import node
+
+    package = json.loads((node.HERE / "package.json").read_text())
+    lock = json.loads((node.HERE / "package-lock.json").read_text())
+    assert package["dependencies"] == {"rp2040js": node.RP2040JS}
+    locked = lock["packages"]["node_modules/rp2040js"]
+    assert locked["version"] == node.RP2040JS and locked["integrity"].startswith("sha512-")
+    assert set(node.FILES) <= {p.name for p in node.HERE.iterdir()}  # what an install copies is there

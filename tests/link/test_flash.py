@@ -360,3 +360,16 @@ def test_a_board_with_micropython_only_is_told_apart_without_waiting_for_a_boot(
         t0 = time.monotonic()
         assert client.soft_reset(wait=1.5) is False
         assert time.monotonic() - t0 < board_client.BOOT_WAIT_S / 2
+
+
+def test_a_board_running_another_main_py_is_not_waited_for_as_a_booting_firmware():
+    """Only our firmware's boot line (protocol.BOOTING) earns the long wait: a main.py of someone
+    else's that never answers is given up on within soft_reset's own `wait`."""
+    from host.link import board_client
+
+    with VirtualBoard(factory=False) as board:
+        (board.root / "main.py").write_text("import time\nwhile True:\n    time.sleep(1)\n")
+        with BoardClient(board.path, check=False) as client:
+            t0 = time.monotonic()
+            assert client.soft_reset(wait=1.5) is False
+            assert time.monotonic() - t0 < board_client.BOOT_WAIT_S / 2

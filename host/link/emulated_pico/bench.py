@@ -21,10 +21,11 @@ of emulated time and must not wait on a busy host's other threads. It
 Requests (stdin) and answers (stdout):
   {"op": "rig", "rig": {...bench_rig.apply's dict}}  -> {"ok": true}
   {"op": "gauge"}  -> {"force_n": N, "t_s": emulated seconds}
-  {"op": "state"}  -> {"t_s", "block_mm", "nut_mm", "deformation_mm", "volts", "instructions",
-                       "cycles", "flash_bytes" (what the filesystem image holds), ...}
+  {"op": "state"}  -> {"t_s", "block_mm", "nut_mm", "deformation_mm", "volts", "gauge_tension_n",
+                       "instructions", "cycles", "usb_configured", "dropped_bytes"}
   {"op": "quit"}
-The first line it prints is {"path": "/dev/pts/N", ...} once the chip runs.
+An "id" in a request comes back in its answer. The first line it prints is {"path": "/dev/pts/N",
+"pid": ...} once the chip runs.
 """
 
 import json
@@ -46,6 +47,12 @@ MIN_CODES = 8  # codes sent per wired input per slice, at least; twice the last 
 VSYS_CODE = 2068  # GPIO29 on a Pico reads VSYS/3 (5 V) of 3.3 V
 TEMPERATURE_CODE = 876  # the sensor's 0.706 V at 27 C
 AHEAD_NS = 20_000_000  # emulated time may lead the wall clock by this much, no more
+
+
+def _write_all(fd, data):
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
 
 
 def _pty():
@@ -166,7 +173,7 @@ class Bench:
         parts.append(self.to_device)
         self.to_device = b""
         payload = b"".join(parts)
-        os.write(self.to_node, struct.pack("<I", len(payload)) + payload)
+        _write_all(self.to_node, struct.pack("<I", len(payload)) + payload)
 
     # -- the USB host side ----------------------------------------------------------------------
     def _to_client(self, data):
@@ -187,7 +194,9 @@ class Bench:
             if now >= deadline:
                 self.client_absent = True
                 break
-            select.select([], [self.master], [], deadline - now)
+            readable, _, _ = select.select([self.master], [self.master], [], deadline - now)
+            if readable:
+                self._from_client()  # a client blocked writing to us would never read
         self.dropped += len(view)
 
     def _from_client(self):
@@ -201,14 +210,15 @@ class Bench:
             self._trace("->", data)
 
     # -- the rig ------------------------------------------------------------------------------
-    def _control(self, line):
-        req = json.loads(line)
+    def _control(self, req):
         op = req.get("op")
         w = self.plant.world
         if op == "rig":
             bench_rig.apply(w, req["rig"])
             return {"ok": True}
         if op == "gauge":
+            if w.load_kind != "gauge":
+                return {"error": "the virtual rig shows no gauge reading (is the gauge hooked?)"}
             return {"force_n": bench_rig.gauge_reading_n(w), "t_s": w.time_s}
         if op == "state":
             return {"t_s": w.time_s, "block_mm": w.block_mm, "nut_mm": w.nut_mm, "deformation_mm": w.deformation_mm,
@@ -230,15 +240,18 @@ class Bench:
         while b"\n" in self.control_text:
             line, self.control_text = self.control_text.split(b"\n", 1)
             try:
-                answer = self._control(line)
+                req = json.loads(line)
+                answer = self._control(req)
             except (ValueError, KeyError, TypeError) as exc:
-                answer = {"error": str(exc)}
-            os.write(1, (json.dumps(answer) + "\n").encode())
+                req, answer = {}, {"error": str(exc)}
+            if isinstance(req, dict) and "id" in req:
+                answer["id"] = req["id"]
+            _write_all(1, (json.dumps(answer) + "\n").encode())
 
     # -- the loop -------------------------------------------------------------------------------
     def run(self):
         t_ns, reads, levels, out = self._report()
-        os.write(1, (json.dumps({"path": self.path, "pid": os.getpid()}) + "\n").encode())
+        _write_all(1, (json.dumps({"path": self.path, "pid": os.getpid()}) + "\n").encode())
         self.wall0 = time.monotonic()
         slice_ns = SLICE_NS
         fds = [self.master, 0]
@@ -262,9 +275,15 @@ class Bench:
 
     def close(self):
         try:
+            self.node.stdin.close()  # the chip's end of the protocol: Node ends at its EOF
+        except OSError:
+            pass
+        try:
             self.node.wait(timeout=5)
         except subprocess.TimeoutExpired:
             self.node.kill()
+        if self.trace is not None:
+            self.trace.close()
         for fd in (self.master, self.slave):
             try:
                 os.close(fd)

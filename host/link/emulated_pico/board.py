@@ -17,6 +17,7 @@ import subprocess
 import sys
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 from host.errors import UserError
@@ -109,8 +110,10 @@ class EmulatedPico:
             json.dump(config, f)
         self._proc = subprocess.Popen(
             [sys.executable, "-m", "host.link.emulated_pico.bench", self._config_file],
-            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, bufsize=1, cwd=str(REPO),
+            stdin=subprocess.PIPE, stdout=subprocess.PIPE, cwd=str(REPO),
             start_new_session=True)  # a Ctrl-C meant for the host does not kill the board under it
+        self._out = b""
+        self._asked = 0
         first = self._read_line(START_TIMEOUT_S)
         try:
             self.path = json.loads(first)["path"]
@@ -120,24 +123,39 @@ class EmulatedPico:
         return self.path
 
     def _read_line(self, timeout):
+        """The bench's next line of output ("" when none came within `timeout` s)."""
         import select
 
-        ready, _, _ = select.select([self._proc.stdout], [], [], timeout)
-        if not ready:
-            return ""
-        return self._proc.stdout.readline()
+        fd = self._proc.stdout.fileno()
+        deadline = time.monotonic() + timeout
+        while b"\n" not in self._out:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([fd], [], [], left)[0]:
+                return ""
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                return ""
+            self._out += chunk
+        line, self._out = self._out.split(b"\n", 1)
+        return line.decode()
 
     def ask(self, op, **fields):
-        """One request to the bench process (see bench.py); its answer as a dict."""
+        """One request to the bench process (see bench.py); its answer as a dict. Each request
+        carries a number its answer repeats, so a late answer is never taken for the next one's."""
         if self._proc is None or self._proc.poll() is not None:
             raise UserError("the emulated Pico is not running")
         with self._lock:
-            self._proc.stdin.write(json.dumps(dict(fields, op=op)) + "\n")
+            self._asked += 1
+            self._proc.stdin.write((json.dumps(dict(fields, op=op, id=self._asked)) + "\n").encode())
             self._proc.stdin.flush()
-            line = self._read_line(30)
-        if not line:
-            raise UserError("the emulated Pico's bench did not answer %s" % op)
-        answer = json.loads(line)
+            deadline = time.monotonic() + 30
+            while True:
+                line = self._read_line(max(0.0, deadline - time.monotonic()))
+                if not line:
+                    raise UserError("the emulated Pico's bench did not answer %s" % op)
+                answer = json.loads(line)
+                if answer.pop("id", None) == self._asked:
+                    break
         if "error" in answer:
             raise UserError("the emulated Pico's bench refused %s: %s" % (op, answer["error"]))
         return answer
@@ -165,7 +183,7 @@ class EmulatedPico:
         if proc is not None:
             try:
                 if proc.poll() is None:
-                    proc.stdin.write(json.dumps({"op": "quit"}) + "\n")
+                    proc.stdin.write(b'{"op": "quit"}\n')
                     proc.stdin.flush()
                     proc.wait(timeout=10)
             except (OSError, subprocess.TimeoutExpired, ValueError):

@@ -21,7 +21,7 @@ from host.errors import UserError, install_hint
 HERE = Path(__file__).resolve().parent
 FILES = ("package.json", "package-lock.json", "pico.mjs", "bootrom-b1.bin")
 NODE_MIN = 18
-RP2040JS = "1.4.1"  # the version package.json pins (tests/link/test_emulated_pico_install.py checks they agree)
+RP2040JS = "1.4.1"  # the version package.json pins (tests/link/test_emulated_pico.py checks they agree)
 
 
 def node_executable():

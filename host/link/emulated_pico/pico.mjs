@@ -130,6 +130,8 @@ let fromDevice = [];
 cdc.onSerialData = (data) => { fromDevice.push(Buffer.from(data)); };
 let toDevice = Buffer.alloc(0);
 const usb = mcu.usbCtrl, completeRead = usb.onEndpointRead;
+// One held read is enough: MicroPython's TinyUSB arms the CDC OUT endpoint single-buffered, one
+// transfer at a time (a double-buffered endpoint would arm two, and the second would be lost here)
 let heldRead = null;
 usb.onEndpointRead = (ep, size) => {
   if (ep === cdc.outEndpoint && cdc.txFIFO.empty && toDevice.length === 0) {
