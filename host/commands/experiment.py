@@ -28,6 +28,9 @@ def add_parser(subparsers):
     p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over full scale, mm (real boards)")
     p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force identification rounds (paper: 5; default 2)")
+    p.add_argument("--held-out-seed", type=ranged(int, 0, 2**31 - 1), default=None, metavar="N",
+                   help="seed of the held-out positions and forces (default: drawn from the clock and printed; give "
+                   "a run's seed from its results.json to repeat its targets)")
     p.add_argument("--fix", action="store_true", help="apply the board-file settings bringup recommends (wiring, "
                    "directions, oversample for noisy pots): write the corrected board file and flash it")
     p.set_defaults(func=run)
@@ -55,7 +58,8 @@ def run(args):
         with Session(args.port, args.board, None, say=prompter.say, uf2=args.uf2) as session:
             opts.ref_scale = reference_scale(session.actuator, args.ref_zero_mm, args.ref_span_mm)
             rig = make_rig(args, prompter, session)
-            path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say, results=results)
+            path, results = run_paper(session, rig, prompter, opts, out_dir, say=prompter.say, results=results,
+                                      held_out_seed=args.held_out_seed)
     except (Exception, KeyboardInterrupt) as exc:
         if not results:  # nothing measured yet (no board, a bad option): the usual one line
             raise

@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 
-from host.experiments import displacement, force_runs, model_compare, report, variants
+from host.experiments import displacement, force_runs, held_out, model_compare, report, variants
 from host.guided.flow import BRINGUP, STEPS, run_steps
 from host.guided.force_calibration import gauge_sides
 from host.guided.friction_trim import PRELOAD_N
@@ -118,7 +118,7 @@ def json_text(v):
     return json.dumps(v, indent=1, default=lambda x: x.tolist() if hasattr(x, "tolist") else str(x))[:4000]
 
 
-def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
+def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, held_out_seed=None):
     out_dir = Path(out_dir)
     t0 = time.monotonic()
     timings = {}
@@ -169,6 +169,20 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     results["fig5"] = accepted["assembly"].data["stats"]
     progress.done()
 
+    import numpy as np
+
+    seed = held_out.draw_seed() if held_out_seed is None else int(held_out_seed)
+    rng = np.random.default_rng(seed)
+    say("== held out: what the calibration never saw (targets drawn with seed %d) ==" % seed)
+    progress.start("held-out Df")
+    results["held_out"] = {"seed": seed}
+    results["held_out"]["df"] = held_out.df_validation(session, rig, max(100, int(opts.duty * held_out.SWEEP_DUTY_FACTOR)), say)
+    say("  Df held out: %.3f mm peak of 1 mm bin means, the two directions averaged (%.3f mm pooled; the "
+        "friction's deflection %+.3f mm)" % (results["held_out"]["df"]["peak_binned_mm"],
+                                           results["held_out"]["df"].get("peak_pooled_mm", float("nan")),
+                                           results["held_out"]["df"].get("friction_deflection_mm", float("nan"))))
+    progress.done()
+
     say("== Fig. 3a: objective vs order (pot 2 sweep of this run) ==")
     progress.start("Fig. 3a")
     t = time.monotonic()
@@ -206,6 +220,9 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
     session.flash(calibrated)
     after = displacement.run_targets(session, rig, opts.ref_scale, zero, label="after")
+    drawn = held_out.draw_positions(rng, results["stroke_mm"])
+    say("  held-out positions (drawn): %s mm" % ", ".join("%g" % t for t in drawn))
+    results["held_out"]["positions"] = held_out.positions(session, rig, opts.ref_scale, zero, drawn)
     for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
         blocking.append(("with Df", force_runs.blocking_run(session, rig, target)))
     results["fig7"] = {"before": before, "after": after, "reference_zero": zero}
@@ -225,6 +242,21 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None):
     progress.start("Table 1")
     results["table1"] = [row for side in gauge_sides(opts.gauge_sides)
                          for row in force_runs.force_steps(session, rig, prompter, opts.anchor_mm, side)]
+    progress.done()
+    say("== held-out force steps (drawn) ==")
+    progress.start("held-out force steps")
+    reached = held_out.side_ranges(accepted["force"].data, gauge_sides(opts.gauge_sides))
+    rows, drawn_forces = [], {}
+    for side in gauge_sides(opts.gauge_sides):
+        held = held_out.held_by_calibration(reached[side]) if opts.trim and opts.friction else []
+        magnitudes = held_out.draw_forces(rng, reached[side], held, held_out.side_levels(accepted["force"].data, side))
+        drawn_forces[side] = {"reached_n": reached[side], "held_by_calibration_n": held, "drawn_n": magnitudes}
+        say("  %s side (reached %.1f N; the calibration held %s N): %s N" % (
+            side, reached[side], ", ".join("%g" % h for h in held) or "-", ", ".join("%g" % m for m in magnitudes) or "none"))
+        if magnitudes:
+            rows += held_out.forces(session, rig, prompter, opts.anchor_mm, side, magnitudes)
+    results["held_out"]["force_draws"] = drawn_forces
+    results["held_out"]["forces"] = rows
     timings["force"] = time.monotonic() - t
     timings["total"] = time.monotonic() - t0
     results["timings"] = timings
