@@ -229,9 +229,10 @@ def judge(results):
         rows = ho.get("positions") or results["fig7"]["after"]
         out["displacement"] = max_error(rows) <= TARGETS["displacement_mm"]
     if "fig8" in results:
+        from host.experiments.report import ran_to_the_end
+
         with_df = [b for n, b in results["fig8"] if n == "with Df"]
-        out["no blocking"] = all((b["final"] >= TARGETS["blocking_from_mm"]) if b["target_n"] > 0
-                                 else (b["final"] <= 60.0 - TARGETS["blocking_from_mm"]) for b in with_df) if with_df else None
+        out["no blocking"] = all(ran_to_the_end(b, results.get("stroke_nominal_mm")) for b in with_df) if with_df else None
     return out
 
 

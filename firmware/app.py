@@ -26,6 +26,7 @@ from firmware.telemetry import Ring
 
 FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
 EXIT_TEXT_MAX = 200
+STROKE_INSET_UM = 500  # the soft stroke limits' default distance inside the board file's stroke_mm
 # The main loop's passes (link, host watchdog) are at most this far apart when there is nothing
 # to do. A pass costs about 0.2 ms of an RP2040; run at every interrupt (the step's, USB's), as
 # the emulated Pico showed (docs/emulated-pico.md), passes kept its CPU about 70 % busy at rest.
@@ -136,12 +137,21 @@ class App:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
         self.params_path = params_path
+        # The board's defaults: the table's, with the soft stroke limits 0.5 mm inside the board
+        # file's "stroke_mm" when it has one (the table's 0.5/59.5 mm are a 0-60 mm actuator's)
+        self.defaults = array("i", [row[1] for row in PARAMS])
+        stroke = self.board.get("stroke_mm")
+        if stroke is not None:
+            self.defaults[self._param_index("stroke_min_um")] = int(round(stroke[0] * 1000)) + STROKE_INSET_UM
+            self.defaults[self._param_index("stroke_max_um")] = int(round(stroke[1] * 1000)) - STROKE_INSET_UM
+        for i in range(len(PARAMS)):
+            self.ctrl.p[i] = self.defaults[i]
         saved, self.params_file_error = saved_params.load(params_path, PARAMS)
         self.params_from_file = bool(saved)
         for i in saved:
             self.ctrl.p[i] = saved[i]
         self.ctrl.apply_params()
-        # What every parameter is at boot (the saved values, else the table's defaults): a host
+        # What every parameter is at boot (the saved values, else the board's defaults): a host
         # that goes silent gets them back (watch_host)
         self.boot_params = array("i", self.ctrl.p)
         # Temporary values (`set NAME VALUE temp`: what a host command changes for itself, such
@@ -290,17 +300,20 @@ class App:
         c.target = value
 
     def params(self):
-        """The parameter table with the values in force: [name, value, default, min, max, unit]."""
+        """The parameter table with the values in force: [name, value, default, min, max, unit]
+        (the default is this board's: the table's, or from its board file's stroke)."""
         p = self.ctrl.p
-        return [[row[0], p[i], row[1], row[2], row[3], row[4]] for i, row in enumerate(PARAMS)]
+        d = self.defaults
+        return [[row[0], p[i], d[i], row[2], row[3], row[4]] for i, row in enumerate(PARAMS)]
 
     def params_saved(self):
-        """{name: value} the board booted with that differ from the table's defaults; None when
-        no saved parameters were loaded."""
+        """{name: value} the board booted with that differ from its defaults; None when no saved
+        parameters were loaded."""
         if not self.params_from_file:
             return None
         b = self.boot_params
-        return dict((row[0], b[i]) for i, row in enumerate(PARAMS) if b[i] != row[1])
+        d = self.defaults
+        return dict((row[0], b[i]) for i, row in enumerate(PARAMS) if b[i] != d[i])
 
     def save_params(self):
         """Keep the parameters in force on the board (loaded at the next boot). Idle only: a

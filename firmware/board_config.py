@@ -46,7 +46,23 @@ def check_board(board):
     if not 1 <= board["oversample"] <= 64:
         raise BoardError("oversample must be 1..64, not %r" % board["oversample"])
     check_timer(board)
+    check_stroke(board)
     return board
+
+
+STROKE_LIMIT_MM = 65.5  # positions are whole um within +-65535 (measurement.STROKE_CLAMP_UM)
+
+
+def check_stroke(board):
+    """"stroke_mm": [low, high], the actuator's nominal stroke (optional; 0-60 mm without it). The
+    soft stroke limits start 0.5 mm inside it, and the host's calibration and experiments follow
+    it (host/guided/stroke.py)."""
+    stroke = board.get("stroke_mm")
+    if stroke is None:
+        return
+    ok = isinstance(stroke, list) and len(stroke) == 2 and all(isinstance(v, (int, float)) for v in stroke)
+    if not ok or not -STROKE_LIMIT_MM <= stroke[0] < stroke[1] <= STROKE_LIMIT_MM:
+        raise BoardError("stroke_mm must be [low, high] in mm within +-%s (low < high), not %r" % (STROKE_LIMIT_MM, stroke))
 
 
 def check_timer(board):

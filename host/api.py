@@ -153,11 +153,10 @@ class Board:
         return ok, value, seconds, last, faults, end
 
     def move(self, to_mm, tolerance_mm=0.2, timeout_s=15.0, hold=False, progress=None):
-        """Closed-loop position move of the output block to `to_mm` (0-60 mm), until D2 stays within
+        """Closed-loop position move of the output block to `to_mm` (inside the soft stroke limits,
+        0.5-59.5 mm on a 0-60 mm actuator), until D2 stays within
         `tolerance_mm` for 0.3 s of board time or `timeout_s` of it passed; motor off after unless
         `hold`. `progress(mm, seconds)` is called about 5 times a second of board time."""
-        if not 0.0 <= to_mm <= 60.0:
-            raise UserError("the target must be within the 0-60 mm stroke, not %g mm" % to_mm)
         self._needs_calibration("a move")
         lo, hi = self.stroke_limits_um()
         if not lo <= round(to_mm * 1000) <= hi:

@@ -41,7 +41,8 @@ def add_parser(subparsers):
     p.add_argument("--force-range", type=ranged(float, 1, 25), default=16.0, metavar="N",
                    help="force: load until the gauge reads this many newtons (default 16: the paper's forces reach 15 N)")
     p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=9000, help="force: largest open-loop duty (default 9000)")
-    p.add_argument("--anchor-mm", type=ranged(float, 0, 60), default=45.0, help="force: where the fibre goes taut, mm (default 45)")
+    p.add_argument("--anchor-mm", type=ranged(float, -65.5, 65.5), default=None,
+                   help="force: where the fibre goes taut, mm (default 75 %% along the stroke: 45 of 0-60 mm)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
     p.add_argument("--fix", action="store_true", help="bringup: write and flash a corrected board file without asking")
     p.set_defaults(func=run)

@@ -13,7 +13,7 @@ from host.terminal import end_progress, progress_line
 def add_parser(subparsers):
     p = subparsers.add_parser("move", help="move the output block to a position (closed loop)")
     add_port_arguments(p)
-    p.add_argument("--to", type=ranged(float, -65.5, 65.5), required=True, metavar="MM", help="target position of the output block, mm (0-60)")
+    p.add_argument("--to", type=ranged(float, -65.5, 65.5), required=True, metavar="MM", help="target position of the output block, mm (inside the board's soft stroke limits: host status shows them)")
     p.add_argument("--tolerance", type=ranged(float, 0.001, 60), default=0.2, metavar="MM", help="settled when within this, mm (default 0.2)")
     p.add_argument("--timeout", type=ranged(float, 0.1, 3600), default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave position mode on at the end (the firmware stops the motor "
@@ -60,8 +60,6 @@ def report(args, outcome, summary, png, text):
 
 
 def run(args):
-    if not 0.0 <= args.to <= 60.0:
-        raise UserError("--to must be within the 0-60 mm stroke")
     outcome, summary, png = run_motion(
         args, lambda board, progress: board.move(args.to, args.tolerance, args.timeout, args.hold, progress), "mm (D2)")
     if outcome.value is None:

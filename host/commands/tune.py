@@ -94,8 +94,6 @@ def run(args):
     band = args.band if args.band is not None else band
     if step == 0:
         raise UserError("--step must not be 0")
-    if args.mode == "position" and not (0 <= start <= 60 and 0 <= start + step <= 60):
-        raise UserError("--start and --start + --step must stay within the 0-60 mm stroke")
     grid = {}
     if args.kp:
         grid[names[0]] = _values(args.kp)
@@ -107,6 +105,11 @@ def run(args):
         progress_line("trial %d/%d: %s" % (i + 1, n, " ".join("%s=%d" % kv for kv in gains.items())))
 
     with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, require_calibration=True) as board:
+        if args.mode == "position":
+            lo, hi = (v / 1000.0 for v in board.call("status")["stroke_um"])
+            if not (lo <= start <= hi and lo <= start + step <= hi):
+                raise UserError("--start and --start + --step must stay within the soft stroke limits in force, "
+                                "%.1f..%.1f mm (host status)" % (lo, hi))
         trials, chosen = tune(board, args.mode, int(round(start / scale)), int(round(step / scale)), args.duration,
                               band / scale, grid=grid, keep=args.apply or args.save, progress=progress)
         end_progress()

@@ -15,21 +15,23 @@ import numpy as np
 
 from host.guided import acquire
 from host.guided.prompts import end_progress, progress_line
-from host.guided.pot_calibration import STROKE_MIDDLE_MM
+from host.guided import stroke
 from host.guided.rig import reference_mm
 
 # The paper's targets run 1-60 mm; the firmware's soft stroke limits (0.5 and 59.5 mm) keep the
-# block off the end stops, so the targets span the project's 1-59 mm.
-TARGETS_MM = (1, 5, 10, 15, 20, 25, 30, 35, 40, 45, 50, 55, 59)
+# block off the end stops, so the targets span the project's 1-59 mm: 1 mm inside each end and
+# every 5 mm between, on any stroke (host/guided/stroke.py position_targets).
+TARGETS_MM = stroke.position_targets(stroke.DEFAULT_MM)
 # Settled: the 0.1 s mean of the firmware's D2 within SETTLE_UM of the target for 0.2 s (board
 # time; host.guided.acquire.settle). The settle time is from the command to entering that band
 # for good; the error is then the reference's 0.3 s mean against the target.
 SETTLE_UM = 50
 
 
-def zero_at_stops(session, rig, ref_scale, duty=2500):
+def zero_at_stops(session, rig, ref_scale, duty=2500, middle_mm=30.0):
     """The reference (on pot 2) zeroed against the block's end stops: {"low", "high": its readings
-    there in mm, "shift": what to add to a reading so that the stops' middle reads 30 mm}."""
+    there in mm, "shift": what to add to a reading so that the stops' middle reads `middle_mm`,
+    the middle of the nominal stroke, as the calibration's frame has it}."""
     rig.mount_reference("pot2")
     bits = session.board["adc_bits"]
     read = {}
@@ -37,7 +39,7 @@ def zero_at_stops(session, rig, ref_scale, duty=2500):
         for end, sign in (("low", -1), ("high", 1)):
             rec = acquire.at_stop(acquire.drive_to_stop(session.client, sign * duty))
             read[end] = float(np.median(reference_mm(rec[:, acquire.COL["raw_ref"]], bits, ref_scale)))
-    read["shift"] = STROKE_MIDDLE_MM - (read["low"] + read["high"]) / 2.0
+    read["shift"] = middle_mm - (read["low"] + read["high"]) / 2.0
     return read
 
 
@@ -58,7 +60,7 @@ def run_targets(session, rig, ref_scale, zero, targets=TARGETS_MM, label=""):
     return rows
 
 
-def max_error(rows, lo=1.0, hi=59.0):
+def max_error(rows, lo=float("-inf"), hi=float("inf")):
     errs = [abs(r["error"]) for r in rows if lo <= r["target"] <= hi and np.isfinite(r["error"])]
     return max(errs) if errs else float("nan")
 

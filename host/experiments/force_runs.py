@@ -23,11 +23,12 @@ from host.guided.friction_trim import hold_sequence
 STEPS_N = (5.0, 10.0, 15.0, 10.0, 5.0)  # magnitudes: loading, then unloading
 
 
-def blocking_run(session, rig, target_n, seconds=4.0):
-    """(time s, D2 mm) trajectory and the final D2 of a no-load force run from 30 mm."""
+def blocking_run(session, rig, target_n, start_mm=30.0, seconds=4.0):
+    """(time s, D2 mm) trajectory and the final D2 of a no-load force run from `start_mm` (the
+    middle of the stroke: 30 mm of 0-60)."""
     rig.no_load()
     client = session.client
-    acquire.hold(client, "position", 30000, "d2_um", 200, timeout_s=8.0, measure_s=0.1)
+    acquire.hold(client, "position", int(round(start_mm * 1000)), "d2_um", 200, timeout_s=8.0, measure_s=0.1)
     client.call("mode", "force")
     client.call("target", int(target_n * 1000))
     rec = acquire.collect(client, seconds)
@@ -35,7 +36,7 @@ def blocking_run(session, rig, target_n, seconds=4.0):
     t = (rec[:, acquire.COL["t_us"]] - rec[0, acquire.COL["t_us"]]) / 1e6 if len(rec) else np.zeros(0)
     d2 = rec[:, acquire.COL["d2_um"]] / 1000.0 if len(rec) else np.zeros(0)
     final = float(np.mean(d2[-20:])) if len(d2) else float("nan")
-    return {"t": t, "d2": d2, "final": final, "target_n": target_n}
+    return {"t": t, "d2": d2, "final": final, "target_n": target_n, "start_mm": start_mm}
 
 
 def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):

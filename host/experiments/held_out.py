@@ -70,9 +70,10 @@ def _draw(rng, lo, hi, n, avoid, gap, tries=2000):
     return out
 
 
-def draw_positions(rng, stroke_mm, n=POSITIONS):
+def draw_positions(rng, stroke_mm, n=POSITIONS, paper_targets=displacement.TARGETS_MM):
+    """`n` positions within the soft limits `stroke_mm` (0.5 mm inside), off `paper_targets`."""
     lo, hi = stroke_mm[0] + 0.5, stroke_mm[1] - 0.5
-    return sorted(_draw(rng, lo, hi, n, [(t, POSITION_GAP_MM) for t in displacement.TARGETS_MM], POSITION_GAP_MM))
+    return sorted(_draw(rng, lo, hi, n, [(t, POSITION_GAP_MM) for t in paper_targets], POSITION_GAP_MM))
 
 
 def draw_forces(rng, reached_n, held_n=(), levels_n=(), loading=LOADING, unloading=UNLOADING):

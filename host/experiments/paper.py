@@ -13,7 +13,8 @@ from pathlib import Path
 
 
 from host.experiments import displacement, force_runs, held_out, model_compare, report, variants
-from host.guided.flow import BRINGUP, STEPS, run_steps
+from host.guided import stroke
+from host.guided.flow import BRINGUP, STEPS, follow_the_actuator, run_steps
 from host.guided.force_calibration import gauge_sides
 from host.guided.friction_trim import PRELOAD_N
 
@@ -171,6 +172,8 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, he
 
     import numpy as np
 
+    results["stroke_nominal_mm"] = list(opts.stroke)
+    results["stroke_in_force_mm"] = [v / 1000.0 for v in session.client.call("status")["stroke_um"]]
     seed = held_out.draw_seed() if held_out_seed is None else int(held_out_seed)
     rng = np.random.default_rng(seed)
     say("== held out: what the calibration never saw (targets drawn with seed %d) ==" % seed)
@@ -209,22 +212,24 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, he
     progress.start("Fig. 7 and Fig. 8")
     nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
     session.flash(nominal)
-    zero = displacement.zero_at_stops(session, rig, opts.ref_scale)
+    zero = displacement.zero_at_stops(session, rig, opts.ref_scale, middle_mm=stroke.middle(opts.stroke))
+    targets = stroke.position_targets(opts.stroke)
     say("  reference zeroed at the block's end stops: %.3f and %.3f mm, shift %+.3f mm" % (zero["low"], zero["high"], zero["shift"]))
-    before = displacement.run_targets(session, rig, opts.ref_scale, zero, label="before")
+    before = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="before")
 
     say("== Fig. 8 without the Df correction ==")
     session.flash(variants.write_without_df(out_dir / "calibration-without-df.json", calibrated))
-    blocking = [("without Df", force_runs.blocking_run(session, rig, 5.0))]
+    middle = stroke.middle(opts.stroke)
+    blocking = [("without Df", force_runs.blocking_run(session, rig, 5.0, middle))]
 
     say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
     session.flash(calibrated)
-    after = displacement.run_targets(session, rig, opts.ref_scale, zero, label="after")
-    drawn = held_out.draw_positions(rng, results["stroke_mm"])
+    after = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="after")
+    drawn = held_out.draw_positions(rng, results["stroke_in_force_mm"], paper_targets=targets)
     say("  held-out positions (drawn): %s mm" % ", ".join("%g" % t for t in drawn))
     results["held_out"]["positions"] = held_out.positions(session, rig, opts.ref_scale, zero, drawn)
     for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
-        blocking.append(("with Df", force_runs.blocking_run(session, rig, target)))
+        blocking.append(("with Df", force_runs.blocking_run(session, rig, target, middle)))
     results["fig7"] = {"before": before, "after": after, "reference_zero": zero}
     displacement.plot(out_dir / "fig7.png", before, after)
     results["fig8"] = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]

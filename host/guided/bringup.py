@@ -24,7 +24,7 @@ import numpy as np
 
 from host.errors import UserError
 from host.link.flashing import REPO, mpy_cross_executable
-from host.guided import acquire
+from host.guided import acquire, stroke
 from host.guided.outcome import StepOutcome
 from host.guided.rig import reference_mm, reference_scale
 
@@ -177,14 +177,15 @@ def probe_wiring(session, rig, prompter, opts):
     if w.problems:
         return w
     block = _block_mm(rest, board, opts, session.actuator)
+    lo, hi = opts.stroke or stroke.DEFAULT_MM
     if block is not None:
         w.lines.append("reference sensor on the block: %.1f mm" % block)
-        if not END_MARGIN_MM <= block <= 60 - END_MARGIN_MM:
+        if not lo + END_MARGIN_MM <= block <= hi - END_MARGIN_MM:
             raise UserError("the block is at %.1f mm: move it toward mid-stroke (by hand, motor off) and run "
                             "bringup again" % block)
     # a free push toward the middle, as far as we know where the middle is
-    where = block if block is not None else 60.0 * stats["raw2"][0] / full
-    sign = 1 if where < 30 else -1
+    where = block if block is not None else lo + (hi - lo) * stats["raw2"][0] / full
+    sign = 1 if where < (lo + hi) / 2.0 else -1
     before, after = _push(client, sign * FREE_DUTY, FREE_S)
     d = {c: acquire.mean(after, c) - acquire.mean(before, c) for c in ("raw1", "raw2")}
     moved = {c: abs(d[c]) > max(6.0, 6 * w.noise[c]) for c in d}

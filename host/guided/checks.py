@@ -2,7 +2,8 @@
 
 All work on plain arrays (raw codes, reference mm, direction +1/-1) so they can be tested on
 synthetic data: range covered, monotone, noise level, rail-clipped samples, forward/backward
-hysteresis. Limits are for a 60 mm stroke measured by a 12-bit ADC; pass others when needed.
+hysteresis. Limits are for a 60 mm stroke measured by a 12-bit ADC; the guided calibration sets
+the range to its actuator's stroke (host/guided/flow.py follow_the_actuator).
 """
 
 from dataclasses import dataclass
@@ -29,7 +30,7 @@ class Check:
 
 @dataclass
 class Limits:
-    min_range_mm: float = 54.0  # 90 % of the 0-60 mm stroke
+    min_range_mm: float = 54.0  # 90 % of the stroke (here the 0-60 mm one's)
     # a pot with 5 LSB of noise read 4x (oversample) shows ~0.05 mm rms over a 60 mm stroke, more
     # where its curve is flat; broken wiring or a noisy supply shows several times that
     max_noise_mm: float = 0.1

@@ -51,7 +51,8 @@ class Options:
     gauge_sides: str = "both"  # "high" (the paper's rig), "low" or "both"
     friction: bool = True
     trim: bool = True  # force: trim h in closed loop once the force calibration is on the board (friction_trim.py)
-    anchor_mm: float = 45.0
+    anchor_mm: float = None  # where the gauge's fibre goes taut; None: from the stroke (stroke.gauge_anchor_mm)
+    stroke: tuple = None  # the block's nominal stroke (mm); None: from the board (follow_the_actuator)
     rounds: int = 2
     levels: int = 8
     max_duty: int = 9000
@@ -60,6 +61,21 @@ class Options:
     limits: Limits = field(default_factory=Limits)
     flash: bool = True
     fix: bool = False  # bringup: write and flash a corrected board file without asking
+
+
+def follow_the_actuator(opts, session):
+    """Fill in what follows the actuator's stroke (host/guided/stroke.py) unless given: the stroke
+    itself, the range a pot's sweep must cover (90 % of it), the gauge's anchor (75 % along it)."""
+    import dataclasses
+
+    from host.guided import stroke
+
+    if opts.stroke is None:
+        opts.stroke = stroke.nominal(session.board, getattr(session, "actuator", None))
+        opts.limits = dataclasses.replace(opts.limits, min_range_mm=stroke.min_sweep_mm(opts.stroke))
+    if opts.anchor_mm is None:
+        opts.anchor_mm = stroke.gauge_anchor_mm(opts.stroke)
+    return opts
 
 
 def bringup_record(path):
@@ -147,6 +163,9 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
     from host.guided.pot_calibration import calibrate_pots
 
     path = Path(opts.out)
+    follow_the_actuator(opts, session)
+    if rig is not None:
+        rig.ends = tuple("%g mm" % v for v in opts.stroke)
     board_name = session.board["name"]
     accepted = {}
     if BRINGUP in steps:

@@ -16,12 +16,11 @@ import numpy as np
 from firmware.calibration import STROKE_SECTION, convert
 from host.calibration.file import pot_section, stroke_section
 from host.errors import UserError
-from host.guided import acquire, checks
+from host.guided import acquire, checks, stroke
 from host.guided.outcome import StepOutcome
 from host.guided.rig import reference_mm
 
 RAW = {"pot1": "raw1", "pot2": "raw2"}
-STROKE_MIDDLE_MM = 30.0  # the middle of the block's 0-60 mm stroke
 
 
 def adc_sweep(session, rig, pot, duty, ref_scale, say):
@@ -62,8 +61,9 @@ def stroke_from(ends, offset_mm, pot2_section):
                                    "length_mm": hi - lo})
 
 
-def manual_sweep(session, rig, pot, points, prompter, say):
-    """Stop at `points` places each way (short open-loop pushes) and ask the dial gauge."""
+def manual_sweep(session, rig, pot, points, prompter, say, length_mm=60.0):
+    """Stop at `points` places each way over a `length_mm` stroke (short open-loop pushes) and ask
+    the dial gauge."""
     rig.mount_reference(pot)
     client = session.client
     raws, refs, dirs = [], [], []
@@ -74,7 +74,7 @@ def manual_sweep(session, rig, pot, points, prompter, say):
         for i in range(points):
             if i:
                 with acquire.open_stroke(client):
-                    pulse = acquire.collect_pulse(client, sign * 2000, 60.0 / points / 25.0)
+                    pulse = acquire.collect_pulse(client, sign * 2000, length_mm / points / 25.0)
                 if acquire.stalled_at_end(pulse):
                     break
             rec = acquire.collect(client, 0.3)
@@ -105,22 +105,25 @@ def calibrate_pots(session, rig, prompter, opts):
         prompter.say("[pots] %s: reference sensor on %s" % (pot, pot))
         t0 = time.monotonic()
         if opts.reference == "manual":
-            swept[pot] = manual_sweep(session, rig, pot, opts.manual_points, prompter, prompter.say) + ({},)
+            swept[pot] = manual_sweep(session, rig, pot, opts.manual_points, prompter, prompter.say,
+                                      stroke.length(opts.stroke or stroke.DEFAULT_MM)) + ({},)
         else:
             swept[pot] = adc_sweep(session, rig, pot, opts.duty, opts.ref_scale, prompter.say)
         prompter.say("  %d samples in %.1f s" % (len(swept[pot][0]), time.monotonic() - t0))
     # The block's frame: the reference's own zero is wherever it was mounted, so positions are
     # measured from the block's end stops instead, as pot 2's sweep found them with the
-    # reference on it: the middle of the two stops is 30 mm (mounting error on pot 2 moves and
-    # stretches its scale, so the stops need not sit at 0 and 60 mm of the reference). Both pots
-    # take the same shift, so D1 and D2 stay in one frame.
+    # reference on it: the middle of the two stops is the middle of the nominal stroke, 30 mm of
+    # 0-60 (mounting error on pot 2 moves and stretches its scale, so the stops need not sit at
+    # its ends in the reference's readings). Both pots take the same shift, so D1 and D2 stay in
+    # one frame.
     ends = end_stops(swept["pot2"][3], bits, opts.ref_scale)
     offset = 0.0
+    centre = stroke.middle(opts.stroke or stroke.DEFAULT_MM)
     if ends is not None:
-        offset = (ends["low"][0] + ends["high"][0]) / 2.0 - STROKE_MIDDLE_MM
+        offset = (ends["low"][0] + ends["high"][0]) / 2.0 - centre
         lines.append("end stops: the reference read %.3f and %.3f mm at the block's end stops (stroke %.3f mm); "
-                     "positions are shifted by %+.3f mm so that the middle of the stroke is %.0f mm"
-                     % (ends["low"][0], ends["high"][0], ends["high"][0] - ends["low"][0], -offset, STROKE_MIDDLE_MM))
+                     "positions are shifted by %+.3f mm so that the middle of the stroke is %g mm"
+                     % (ends["low"][0], ends["high"][0], ends["high"][0] - ends["low"][0], -offset, centre))
     else:
         lines.append("end stops: not measured (%s): positions stay in the reference's own frame and the soft "
                      "stroke limits are the stroke_min_um/stroke_max_um parameters alone"

@@ -30,6 +30,7 @@ class Rig:
         self.gauge = gauge
         self.gauge_scale = gauge_scale  # (N at code 0, N over full scale) for --gauge adc
         self.adc_bits = adc_bits
+        self.ends = ("0 mm", "60 mm")  # how the instructions name the stroke's ends (run_steps sets them)
 
     @property
     def virtual(self):
@@ -56,8 +57,9 @@ class Rig:
         hooks the fibre to go taut after the block has moved that far (a person sees where the
         block is, not its true position in mm: on the virtual rig the anchor follows from the
         block's place)."""
-        where = ("on the 60 mm side (the block pulls it toward 0 mm)" if side == "high"
-                 else "on the 0 mm side (the block pulls it toward 60 mm)")
+        low, high = self.ends
+        where = ("on the %s side (the block pulls it toward %s)" % (high, low) if side == "high"
+                 else "on the %s side (the block pulls it toward %s)" % (low, high))
         change = {"load": {"kind": "gauge", "anchor_mm": float(anchor_mm), "side": side}}
         if gap_mm is not None:
             change["load"]["gap_mm"] = float(gap_mm)
@@ -67,7 +69,7 @@ class Rig:
             wire = " Wire the gauge's analog output to the board's reference input."
         taut = ("taut at D2 = %.1f mm" % anchor_mm if gap_mm is None else
                 "taut once the block has moved %.1f mm from here toward %s (D2 = %.1f mm)"
-                % (gap_mm, "0 mm" if side == "high" else "60 mm", anchor_mm))
+                % (gap_mm, low if side == "high" else high, anchor_mm))
         self._do("Hook the force gauge to the output block through the fibre, %s, anchored so it goes "
                  "%s.%s" % (where, taut, wire), **change)
 

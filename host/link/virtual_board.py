@@ -131,7 +131,7 @@ LOAD_METAVAR = "none|gauge[@MM]|gauge-low[@MM]|constant:N"
 _GAUGE_SIDES = {"gauge": "high", "gauge-low": "low"}
 
 
-STROKE_MM = 60  # where a gauge's fibre can go taut: somewhere along the stroke
+STROKE_MM = 65.5  # where a gauge's fibre can go taut: somewhere along a stroke the firmware represents (+-65.5 mm)
 CONSTANT_LOAD_MAX_N = 100  # several times what the actuator can push; beyond it the model's numbers run away
 
 
@@ -146,14 +146,14 @@ def parse_load(text):
     if number is None or math.isfinite(number):
         if kind == "none" and not sep:
             return {"kind": "none"}
-        if kind in _GAUGE_SIDES and (not sep or 0 <= number <= STROKE_MM):
+        if kind in _GAUGE_SIDES and (not sep or -STROKE_MM <= number <= STROKE_MM):
             load = {"kind": "gauge", "side": _GAUGE_SIDES[kind]}
             if sep:
                 load["anchor_mm"] = number
             return load
         if kind == "constant" and sep and abs(number) <= CONSTANT_LOAD_MAX_N:
             return {"kind": "constant", "force_n": number}
-    raise ValueError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (MM within 0..%g, N within +-%g; "
+    raise ValueError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (MM within +-%g, N within +-%g; "
                      "e.g. gauge@45, constant:-2.5), not %r" % (STROKE_MM, CONSTANT_LOAD_MAX_N, text))
 
 

@@ -1,0 +1,67 @@
+"""The block's stroke: where the calibration puts the middle, and where the experiments put their
+targets and the gauge's anchor.
+
+The paper's actuator runs 0-60 mm; others do not. The nominal stroke is the board file's
+"stroke_mm" ([low, high], a real actuator's, as its drawing gives it; the firmware's soft limits
+start from it too), else the simulated actuator's block stroke, else 0-60 mm. The pots step
+measures the real one: it finds the block's end stops and puts their middle at the middle of the
+nominal stroke, so positions mean the same on the board, in the reference's readings and in the
+experiments' targets.
+
+Positions are whole micrometres within +-65.535 mm on the board (firmware/measurement.py
+STROKE_CLAMP_UM), so a stroke must lie within that: 0-65 mm. A longer actuator needs the
+firmware's position range widened first.
+"""
+
+DEFAULT_MM = (0.0, 60.0)
+LIMIT_MM = 65.5  # |position| the firmware represents (STROKE_CLAMP_UM)
+SWEEP_FRACTION = 0.9  # a pot's sweep must cover this much of the stroke (checks.Limits.min_range_mm)
+ANCHOR_FRACTION = 0.75  # the force gauge's default anchor, along the stroke (45 mm of 60)
+ENDS_MM = 1.0  # the displacement targets' first and last, this far inside the stroke
+TARGET_STEP_MM = 5.0  # and every 5 mm between (the paper's Fig. 7 targets on 0-60 mm)
+
+
+def nominal(board, actuator=None):
+    """(low, high) mm: the board file's "stroke_mm", else `actuator`'s block stroke (a simulated
+    one), else DEFAULT_MM."""
+    given = (board or {}).get("stroke_mm")
+    if given is None and actuator:
+        given = (actuator.get("block") or {}).get("stroke_mm")
+    if given is None:
+        return DEFAULT_MM
+    lo, hi = float(given[0]), float(given[1])
+    if not -LIMIT_MM <= lo < hi <= LIMIT_MM:
+        raise ValueError("stroke_mm must be [low, high] within +-%g mm, not %r" % (LIMIT_MM, given))
+    return lo, hi
+
+
+def length(stroke):
+    return stroke[1] - stroke[0]
+
+
+def middle(stroke):
+    return (stroke[0] + stroke[1]) / 2.0
+
+
+def min_sweep_mm(stroke):
+    return SWEEP_FRACTION * length(stroke)
+
+
+def gauge_anchor_mm(stroke):
+    return round(stroke[0] + ANCHOR_FRACTION * length(stroke), 1)
+
+
+def position_targets(stroke):
+    """The displacement targets: ENDS_MM inside each end and every TARGET_STEP_MM between, on the
+    stroke's own grid (0-60 mm: 1, 5, 10, ..., 55, 59, the paper's)."""
+    lo, hi = stroke
+    first, last = lo + ENDS_MM, hi - ENDS_MM
+    out = [first]
+    k = int(lo // TARGET_STEP_MM) + 1
+    while k * TARGET_STEP_MM < last - 0.5 * TARGET_STEP_MM:
+        v = k * TARGET_STEP_MM
+        if v > first + 0.5 * TARGET_STEP_MM:
+            out.append(v)
+        k += 1
+    out.append(last)
+    return tuple(float(v) for v in out)
