@@ -47,8 +47,14 @@ def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s
     return rows, dz
 
 
-def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5):
-    """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it)."""
+IN_RANGE = 0.9  # a step beyond this share of the force the calibration reached on its side is out of its range
+
+
+def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5, reached_n=None):
+    """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it).
+    `reached_n`: the largest force the force step measured on that side; a row whose target is
+    beyond IN_RANGE of it says so ("in_range": False): the spring and motor were not shown to
+    hold it, and the calibration's F0 there is its fit's end, not a measurement."""
     targets = [SIDES[side] * m for m in magnitudes]
     _, measured, estimates = hold_sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
                                        "%s-side steps" % side, preload=True)
@@ -61,6 +67,8 @@ def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS
             "phase": "loading" if magnitude > peak else "unloading",
             "steady_pct": 100.0 * (m - target) / abs(target),
             "estimation_pct": 100.0 * (e - m) / abs(m) if m else float("nan"),
+            "reached_n": reached_n,
+            "in_range": reached_n is None or magnitude <= IN_RANGE * reached_n,
         })
         peak = max(peak, magnitude)
     rig.no_load()

@@ -245,12 +245,12 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, he
     progress.done()
     say("== Table 1: force steps ==")
     progress.start("Table 1")
+    reached = held_out.side_ranges(accepted["force"].data, gauge_sides(opts.gauge_sides))
     results["table1"] = [row for side in gauge_sides(opts.gauge_sides)
-                         for row in force_runs.force_steps(session, rig, prompter, opts.anchor_mm, side)]
+                         for row in force_runs.force_steps(session, rig, prompter, opts.anchor_mm, side, reached_n=reached[side])]
     progress.done()
     say("== held-out force steps (drawn) ==")
     progress.start("held-out force steps")
-    reached = held_out.side_ranges(accepted["force"].data, gauge_sides(opts.gauge_sides))
     rows, drawn_forces = [], {}
     for side in gauge_sides(opts.gauge_sides):
         held = held_out.held_by_calibration(reached[side]) if opts.trim and opts.friction else []

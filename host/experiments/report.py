@@ -295,11 +295,21 @@ def write(out_dir, r, opts, command=None):
     paper = {-5.0: "-5.2 / -5.1", -10.0: "-10.7 / -10.1", -15.0: "-14.4 / -14.8"}
     for x in t1:
         first = x.get("side", "high") == "high" and x.get("phase", "loading") == "loading"
+        phase = x.get("phase", "loading")
+        if not x.get("in_range", True):
+            phase += " (beyond %.0f %% of the %.1f N the force step reached on this side)" % (100 * 0.9, x["reached_n"])
         add("| %s | %s | %+.0f | %s | %+.2f | %s | %+.2f | %s |" % (
-            "60 mm" if x.get("side", "high") == "high" else "0 mm", x.get("phase", "loading"), x["target"],
+            "60 mm" if x.get("side", "high") == "high" else "0 mm", phase, x["target"],
             _f(x["measured"], 2), x["steady_pct"], _f(x["estimate"], 2), x["estimation_pct"],
             paper.get(x["target"], "-") if first else "-"))
     add("")
+    beyond = [x for x in t1 if not x.get("in_range", True)]
+    if beyond:
+        add("**Out of the calibrated range:** %s N lie beyond 90 %% of the force the force step measured on their side: "
+            "the spring and motor were not shown to hold them there, and F0 there is the end of its fit, not a "
+            "measurement. They are reported, not judged (the targets are judged on held-out forces within 15-90 %% of "
+            "each side's range)." % ", ".join("%+.0f" % x["target"] for x in beyond))
+        add("")
     add("Steady-state error = (gauge - target) / |target|; estimation error = (firmware estimate - gauge) / |gauge|. "
         "The gauge was tared with the fibre slack before and after each sequence (readings against the tare "
         "interpolated in time: its zero drifts), and a %.1f N preload took up the fibre's slack before the first "

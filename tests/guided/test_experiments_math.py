@@ -133,6 +133,22 @@ def test_the_targets_are_judged_on_the_held_out_figures(tmp_path):
     assert "<= 2 % (held out): met" in meet
 
 
+def test_a_step_beyond_the_calibrated_range_is_said_to_be_so(tmp_path):
+    """A 15 N step on a spring whose force step reached 15.5 N: not a silent miss, but a step the
+    calibration never showed the actuator could hold, said in the table and under it."""
+    from types import SimpleNamespace
+
+    from host.experiments import report
+
+    results = _results(0.05, 0.05, 1.0)
+    for row in results["table1"]:
+        row["reached_n"] = 15.5
+        row["in_range"] = abs(row["target"]) <= 0.9 * 15.5
+    text = report.write(tmp_path, results, SimpleNamespace()).read_text()
+    assert "(beyond 90 % of the 15.5 N the force step reached on this side)" in text
+    assert "**Out of the calibrated range:** -15, +15 N" in text
+
+
 @pytest.mark.parametrize("failure", [TimeoutError("no reply to stream"), KeyboardInterrupt()], ids=["board-gone", "ctrl-c"])
 def test_a_stopped_experiment_keeps_what_it_measured(tmp_path, monkeypatch, capsys, failure):
     """The board stops answering (or Ctrl-C) in the middle of the control experiments: the
