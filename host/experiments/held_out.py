@@ -154,12 +154,11 @@ def side_levels(force_data, side):
 
 
 def side_ranges(force_data, sides):
-    """{side: the largest force magnitude the force step reached on that side} (N)."""
-    out = {}
-    for side in sides:
-        sign = SIDES[side]
-        out[side] = max([sign * f for f in force_data["force_n"] if sign * f > 0] or [0.0])
-    return out
+    """{side: the force magnitude the force step showed the spring can hold on that side} (N):
+    the largest it measured, below any hard contact (friction_trim.side_reach)."""
+    from host.guided.friction_trim import side_reach
+
+    return {side: side_reach(force_data, side) for side in sides}
 
 
 def held_by_calibration(reached_n):

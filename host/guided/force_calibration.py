@@ -299,9 +299,17 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
             1000 * drive.n_per_duty, drive.offset_n, drive.ff_duty) if drive.ff_duty else
         "force: no friction feed-forward for position control (%s)" % drive.why,
     ] + ([unexported] if unexported else [])
+    usable = {}
+    for side in sides:
+        reached, below, contact = usable_range(d, f, loading, duty, side)
+        usable[side] = below
+        if contact is not None:
+            lines.append("force: on the %s side the spring went into hard contact (the nut at the cavity's wall) between "
+                         "%.1f and %.1f N: the trim and the experiments stay below %.1f N there" % (side, below, contact, below))
     stats_f = {"order": fit.order_f, "rms_n": fit.rms_n, "max_n": fit.max_n, "hysteresis_n": hyst,
                "left_out": int(np.count_nonzero(fit.left_out)),
-               "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n}
+               "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n,
+               "usable_n": usable}
     sections = force_sections(fit, drive, stats_f)
     png = opts.out_dir / "calibration-force.png"
     inside = np.zeros(len(d), dtype=bool)
@@ -311,8 +319,40 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
             "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d, "kind": fit.kind,
             "knots_d": fit.knots_d, "knots_f": fit.knots_f,
             "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,
-            "sides": sides}
+            "sides": sides, "usable_n": usable}
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)
+
+
+CONTACT_COMPLIANCE = 0.8  # a loading level that deforms the spring this much less per newton than the one before: contact
+
+
+def usable_range(d, f, loading, duty, side):
+    """(the largest force magnitude the force step measured on `side`, the largest before the
+    spring went into hard contact, the force where it did or None), N.
+
+    A spring pair deforms more per newton once a preloaded spring lifts off, and a little less as
+    it hardens, but when the nut meets the cavity's wall the deformation stops growing with the
+    force: the loading levels' compliance (mm per N between successive duty levels, the rounds
+    averaged) falls. A level whose compliance is under CONTACT_COMPLIANCE times the one before
+    was reached through contact; there F0(d) is not the spring's, and the trim's holds and the
+    experiments' forces stay below it. The first segment is not judged: at its small forces the
+    fibre's take-up and the friction band make its compliance what they please (2.1 -> 3.6 N
+    deformed 45 % more per newton than the rest on one actuator)."""
+    sign = SIDES[side]
+    on = (sign * np.asarray(f) > TAUT_N) & np.asarray(loading, dtype=bool)
+    if not np.any(sign * np.asarray(f) > 0):
+        return 0.0, 0.0, None
+    reached = float(np.max(sign * np.asarray(f)))
+    levels = sorted({int(abs(x)) for x in np.asarray(duty)[on]})
+    pts = []
+    for level in levels:
+        at = on & (np.abs(np.asarray(duty)).astype(int) == level)
+        pts.append((float(np.mean(sign * np.asarray(d)[at])), float(np.mean(sign * np.asarray(f)[at]))))
+    compliance = [(b[0] - a[0]) / (b[1] - a[1]) if b[1] > a[1] else 0.0 for a, b in zip(pts, pts[1:])]
+    for i in range(2, len(compliance)):  # not the first: the fibre and the friction band still settle there
+        if compliance[i] < CONTACT_COMPLIANCE * compliance[i - 1]:
+            return reached, pts[i][1], pts[i + 1][1]
+    return reached, reached, None
 
 
 def plot_force(path, d, f, s, fit, inside=None):

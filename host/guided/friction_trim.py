@@ -67,6 +67,16 @@ def hold_sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, me
     return targets, gauge.forces(), estimates
 
 
+def side_reach(data, side):
+    """The force magnitude (N) the force step showed the spring can hold on `side` (its StepOutcome
+    data): the largest it measured, below any hard contact (force_calibration.usable_range)."""
+    usable = (data.get("usable_n") or {}).get(side)
+    if usable is not None:
+        return float(usable)
+    sign = SIDES[side]
+    return max([sign * f for f in data["force_n"] if sign * f > 0] or [0.0])
+
+
 def trim_magnitudes(range_n):
     """The trim's target magnitudes (N) on a side whose force identification reached `range_n`."""
     return [round(f * range_n, 1) for f in TRIM_FRACTIONS]
@@ -131,7 +141,7 @@ def trim_friction(session, rig, prompter, opts, data):
     sides = {}
     for side in data["sides"]:
         sign = SIDES[side]
-        reached = max([sign * f for f in data["force_n"] if sign * f > 0] or [0.0])
+        reached = side_reach(data, side)
         magnitudes = trim_magnitudes(reached)
         if not magnitudes or magnitudes[0] <= 2 * TAUT_N:
             continue

@@ -1,0 +1,45 @@
+"""What forces the spring can hold: the force step's levels through hard contact are found, and the
+trim and the experiments stay below them (host/guided/force_calibration.py usable_range)."""
+
+import numpy as np
+import pytest
+
+from host.guided.force_calibration import usable_range
+
+
+def _levels(k1, k2, preload, cavity, forces, slack_first=False):
+    """The force step's loading levels on the 60 mm side (negative forces) of a simulated spring
+    pair (boards/sim/actuator.py spring_force), two rounds: d, f, loading, duty. A level past the
+    cavity's wall holds the nut at it, the rest of the force in the contact."""
+    import json
+
+    from boards.sim.actuator import Actuator  # the simulated spring pair's law, not a copy of it
+    from testkit.interpreters import REPO
+
+    params = json.loads((REPO / "boards" / "sim.json").read_text())["actuator"]
+    params["springs"].update(k1_n_per_mm=k1, k2_n_per_mm2=k2, preload_n=preload, cavity_mm=cavity)
+    spring = Actuator(dict(params, adc_bits=12), 1).spring_force
+    grid = np.linspace(0, cavity, 2001)
+    fs = np.array([spring(x) for x in grid])
+    d = [float(np.interp(f, fs, grid)) if f <= fs[-1] else cavity for f in forces]
+    if slack_first:
+        d[0] *= 1.45  # the first level's fibre and friction band
+    d, f = np.array(d * 2), np.array(list(forces) * 2)
+    duty = np.array([625 * (i % len(forces) + 1) for i in range(len(d))])
+    return -d, -f, np.ones(len(d), bool), -duty
+
+
+def test_a_level_through_the_cavity_wall_limits_the_range():
+    # seed 2026112602 of docs/robustness.md: release at 12.3 N, the wall at 18.3 N, levels to 19.1 N
+    d, f, loading, duty = _levels(10.9, 0.37, 5.7, 2.0, [2.7, 5.7, 8.8, 11.8, 14.9, 19.1])
+    reached, usable, contact = usable_range(d, f, loading, duty, "high")
+    assert reached == pytest.approx(19.1) and usable == pytest.approx(14.9) and contact == pytest.approx(19.1)
+
+
+@pytest.mark.parametrize("spring", [(12.37, 0.65, 10.0), (17.6, 0.32, 12.2), (7.0, 1.5, 5.0)])
+def test_a_spring_that_only_softens_at_release_or_hardens_keeps_its_whole_range(spring):
+    k1, k2, preload = spring
+    forces = [2.1, 4.2, 6.5, 8.8, 11.1, 13.3, 15.6, 17.0]
+    d, f, loading, duty = _levels(k1, k2, preload, 2.6, forces, slack_first=True)
+    reached, usable, contact = usable_range(d, f, loading, duty, "high")
+    assert contact is None and usable == reached == pytest.approx(17.0)
