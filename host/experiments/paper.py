@@ -173,7 +173,13 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, he
     import numpy as np
 
     results["stroke_nominal_mm"] = list(opts.stroke)
-    results["stroke_in_force_mm"] = [v / 1000.0 for v in session.client.call("status")["stroke_um"]]
+    status = session.client.call("status")
+    results["stroke_in_force_mm"] = [v / 1000.0 for v in status["stroke_um"]]
+    # the end stops the pots step measured, in D2's frame: pot 2's mounting error can stretch or
+    # shrink the stroke it sees (56.9 mm of a 60 mm one on a fresh actuator), and a target 1 mm
+    # inside the nominal ends could then lie past the soft limit (the run never settled there)
+    results["stroke_measured_mm"] = ([v / 1000.0 for v in status["end_stops_um"]] if status.get("end_stops_um")
+                                     else list(opts.stroke))
     seed = held_out.draw_seed() if held_out_seed is None else int(held_out_seed)
     rng = np.random.default_rng(seed)
     say("== held out: what the calibration never saw (targets drawn with seed %d) ==" % seed)
@@ -213,7 +219,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, he
     nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
     session.flash(nominal)
     zero = displacement.zero_at_stops(session, rig, opts.ref_scale, middle_mm=stroke.middle(opts.stroke))
-    targets = stroke.position_targets(opts.stroke)
+    targets = stroke.position_targets(results["stroke_measured_mm"])
     say("  reference zeroed at the block's end stops: %.3f and %.3f mm, shift %+.3f mm" % (zero["low"], zero["high"], zero["shift"]))
     before = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="before")
 

@@ -131,7 +131,7 @@ def force_points(session, rig, prompter, opts, side="high"):
     # reaches opts.max_duty, or the spring nears the cavity wall); every round then uses those
     # levels. The fit is only trusted over the forces it saw: a weak motor's 5000 duty reached
     # 7.5 N, and a linear F0 carried out to 15 N missed by 20 %.
-    step = STEP_SPAN_DUTY / opts.levels
+    step = _ladder_step(client, gauge, sign, STEP_SPAN_DUTY / opts.levels, opts, prompter)
     levels = []
     d, loading, duties = [], [], []
     for r in range(opts.rounds):
@@ -162,6 +162,31 @@ def force_points(session, rig, prompter, opts, side="high"):
     # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
     s = np.where(loading, 1.0, -1.0) * -SIDES[side]
     return np.array(d), gauge.forces(), s, loading, gauge.tares, np.array(duties, dtype=float)
+
+
+MIN_STEP_DUTY = 100
+STRONG = 1.5  # a first step this many times force_range / levels newtons: the motor is strong, the steps shrink
+
+
+def _ladder_step(client, gauge, sign, step, opts, prompter):
+    """The loading ladder's duty step: `step`, or less when one such step makes more than STRONG
+    times force_range / levels newtons. A fine screw, a high gear ratio or a high supply makes a
+    strong motor: on one fresh actuator (0.41 mm lead, gear 1.26, 8.3 V) 625 duty made 4 N, the
+    ladder reached 16 N in four levels, the last through the spring's hard contact, and F0 was
+    fitted to five points a side. One step is tried (ramped up, read, ramped back down) before
+    the rounds; the steps then aim at force_range / levels newtons each."""
+    want = opts.force_range / opts.levels
+    client.call("mode", "open_loop")
+    _ramp_duty(client, 0, sign * step)
+    acquire.collect(client, opts.settle_s)
+    made = abs(gauge.read(acquire.collect(client, 0.3)) - gauge.tares[-1])
+    _ramp_duty(client, sign * step, 0)
+    client.call("stop")
+    if made <= STRONG * want:
+        return step
+    smaller = max(MIN_STEP_DUTY, step * want / made)
+    prompter.say("  a first step of %d duty made %.1f N: the ladder goes up in steps of %d duty" % (step, made, smaller))
+    return smaller
 
 
 def _levels_until(step, cap):

@@ -52,15 +52,20 @@ def gauge_anchor_mm(stroke):
 
 
 def position_targets(stroke):
-    """The displacement targets: ENDS_MM inside each end and every TARGET_STEP_MM between, on the
-    stroke's own grid (0-60 mm: 1, 5, 10, ..., 55, 59, the paper's)."""
+    """The displacement targets: ENDS_MM inside each end (rounded inward to 0.1 mm) and every
+    TARGET_STEP_MM between, on the stroke's own grid, none closer than 1.5 mm to an end target
+    (0-60 mm: 1, 5, 10, ..., 55, 59, the paper's)."""
+    import math
+
     lo, hi = stroke
-    first, last = lo + ENDS_MM, hi - ENDS_MM
+    first = math.ceil(round((lo + ENDS_MM) * 10, 6)) / 10
+    last = math.floor(round((hi - ENDS_MM) * 10, 6)) / 10
+    gap = 0.3 * TARGET_STEP_MM
     out = [first]
-    k = int(lo // TARGET_STEP_MM) + 1
-    while k * TARGET_STEP_MM < last - 0.5 * TARGET_STEP_MM:
+    k = math.floor(lo / TARGET_STEP_MM) + 1
+    while k * TARGET_STEP_MM <= last - gap:
         v = k * TARGET_STEP_MM
-        if v > first + 0.5 * TARGET_STEP_MM:
+        if v >= first + gap:
             out.append(v)
         k += 1
     out.append(last)
