@@ -7,9 +7,9 @@ experiments on each, pass rates per target, judged on the held-out figures.
 
 Seeds. Draw i uses seed SEED*1000+i with `--seed` (default 1: seeds 1000-1007, which at least six
 fixes were made against: development data, not evaluation). `--fresh` draws an evaluation base
-from today's date (YYYYMMDD*100+i, printed and recorded): seeds no fix was made against when
-they first run. A fix made after looking at a fresh run turns its seeds into development data
-too; the doc records which run was which.
+from the date and hour (YYYYMMDDHH*100+i, printed and recorded): seeds no fix was made against
+when they first run. A fix made after looking at a fresh run turns its seeds into development
+data too; the doc records which run was which.
 
 Each draw changes boards/sim.json's actuator within RANGES below (uniform draws; the choices in
 CHOICES): both pots' knee positions, sharpness, noise and the rail a lifted wiper goes to, a
@@ -17,8 +17,8 @@ mounting error of its own random shape and size on each pot, the reference senso
 gauge's noise, the gauge's stiffness and drift, block friction (Coulomb and viscous), spring
 stiffness, hardening, preload and damping, the masses, motor resistance and constants, screw
 lead and gear ratio, the board's supply voltage (5 V of a USB-powered board to 9 V), and which
-pot carries the reference sensor. The stroke stays boards/sim.json's 0-60 mm: the calibration's
-checks and frame do not yet follow the actuator's stroke (issue 26, item 2). Then `host experiment
+pot carries the reference sensor, and the stroke (0..40 to 0..65 mm; the board file's `stroke_mm`
+says it, as a user's would). Then `host experiment
 paper --port sim --board DRAW.json --out DIR/run-SEED --fix` runs with the defaults (about 6-9
 minutes each on a 2-core machine; --fix applies the board-file settings bringup recommends, as a
 user does after reading them: here more reads per step for noisy pots, which the row's
@@ -38,6 +38,8 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+from testkit.actuators import with_stroke  # noqa: E402
 
 # name: (low, high) of a uniform draw; documented in docs/robustness.md with the results
 RANGES = {
@@ -66,6 +68,7 @@ RANGES = {
     "lead_mm": (0.4, 0.8),
     "gear_ratio": (1.0, 1.5),
     "supply_volts": (4.75, 9.0),  # a USB-powered board's 5 V to a 2S battery's
+    "stroke_mm": (40.0, 65.0),  # 0..L; the firmware's position range ends at 65.5 mm
 }
 CHOICES = {"wiper_lift_rail": ("high", "low"), "reference": ("pot1", "pot2")}
 
@@ -188,7 +191,10 @@ def _draw_once(base, rng):
     m["gear_ratio"] = u("gear_ratio")
     a["screw"]["lead_mm"] = u("lead_mm")
     a["screw"]["nut_mass_kg"] = u("nut_mass_kg")
-    return a, u("supply_volts")
+    volts = u("supply_volts")
+    # the pots' tracks, the reference's span and the gauge's anchor follow the stroke
+    a = with_stroke({"actuator": a}, round(u("stroke_mm"), 1))["actuator"]
+    return a, volts
 
 
 def describe(a, supply_volts, redraws):
@@ -205,7 +211,8 @@ def describe(a, supply_volts, redraws):
             "ref_noise_lsb": a["reference"]["noise_lsb"], "gauge_noise_lsb": a["gauge"]["noise_lsb"],
             "gauge_n_per_mm": a["gauge"]["stiffness_n_per_mm"],
             "pot2_mount_mm_at_0_60": [float(np.polyval(e2[::-1], v)) for v in (-1.0, 1.0)],
-            "reference": a["reference"]["mounted_on"], "redraws": redraws}
+            "reference": a["reference"]["mounted_on"], "redraws": redraws,
+            "stroke_mm": a["block"]["stroke_mm"][1] - a["block"]["stroke_mm"][0]}
 
 
 def judge(results):
@@ -299,7 +306,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--draws", type=int, default=8, help="random actuators besides boards/sim.json (default 8)")
     ap.add_argument("--seed", type=int, default=1, help="draw i uses seed SEED*1000+i (default 1: the development seeds)")
-    ap.add_argument("--fresh", action="store_true", help="evaluation seeds from today's date, YYYYMMDD*100+i, printed")
+    ap.add_argument("--fresh", action="store_true",
+                    help="evaluation seeds from the date and hour, YYYYMMDDHH*100+i, printed")
     ap.add_argument("--only-seed", type=int, help="run just this draw's seed")
     ap.add_argument("--no-base", action="store_true", help="skip the boards/sim.json row")
     ap.add_argument("--out", default="out/robustness", help="where the boards and runs go")
@@ -315,9 +323,10 @@ def main(argv=None):
     if a.only_seed is not None:
         seeds = [a.only_seed]
     elif a.fresh:
-        base = int(time.strftime("%Y%m%d")) * 100
+        base = int(time.strftime("%Y%m%d%H")) * 100
         seeds = [base + i for i in range(a.draws)]
-        print("evaluation seeds %d-%d (from the date: none was run before today)" % (seeds[0], seeds[-1]), file=sys.stderr)
+        print("evaluation seeds %d-%d (from the date and hour: none was run before this hour)" % (seeds[0], seeds[-1]),
+              file=sys.stderr)
     else:
         seeds = [a.seed * 1000 + i for i in range(a.draws)]
     plan = ([] if (a.no_base or a.only_seed is not None) else [("sim.json", None)]) + [("draw", s) for s in seeds]
@@ -328,7 +337,8 @@ def main(argv=None):
         else:
             # seeds below 10000 (the development ones) keep the board's supply, as their runs did
             actuator, volts, redraws = draw(board["actuator"], seed, board["supply_volts"] if seed < 10000 else None)
-            b = dict(board, name="sim", actuator=actuator, supply_volts=round(volts, 2))
+            b = dict(board, name="sim", actuator=actuator, supply_volts=round(volts, 2),
+                     stroke_mm=list(actuator["block"]["stroke_mm"]))
             b.pop("sources", None)
             path = out / ("board-%d.json" % seed)
             name = "seed %d" % seed
@@ -365,16 +375,16 @@ def main(argv=None):
         lines.append("| %s | %s | %s | %s |" % (r["name"], " | ".join(cells), figs, wall))
     lines += ["", "| actuator | friction N | viscous N s/m | k1 N/mm | k2 N/mm^2 | preload N | supply V | lead mm x gear | "
               "push N | spring at 1.8 mm N | block kg | pot noise LSB | ref / gauge noise LSB | gauge N/mm | "
-              "pot 2 mount error at 0 / 60 mm | reference | redraws | oversample after bringup | held-out seed |",
-              "| --- |" + " --- |" * 18]
+              "pot 2 mount error at stroke ends mm | reference | stroke mm | redraws | oversample after bringup | held-out seed |",
+              "| --- |" + " --- |" * 19]
     for r in rows:
         d = r["actuator"]
         lines.append("| %s | %.2f | %.1f | %.1f | %.2f | %.1f | %.1f | %.2f x %.2f | %.1f | %.1f | %.3f | %.1f / %.1f | %.1f / %.1f "
-                     "| %.0f | %+.2f / %+.2f | %s | %d | %s | %s |" % (
+                     "| %.0f | %+.2f / %+.2f | %s | %.1f | %d | %s | %s |" % (
                          r["name"], d["friction_n"], d["viscous"], d["k1_n_per_mm"], d["k2_n_per_mm2"], d["preload_n"],
                          d["supply_v"], d["lead_mm"], d["gear"], d["push_n"], d["spring_at_1.8mm_n"], d["block_kg"],
                          d["noise_lsb"][0], d["noise_lsb"][1], d["ref_noise_lsb"], d["gauge_noise_lsb"], d["gauge_n_per_mm"],
-                         d["pot2_mount_mm_at_0_60"][0], d["pot2_mount_mm_at_0_60"][1], d["reference"], d["redraws"],
+                         d["pot2_mount_mm_at_0_60"][0], d["pot2_mount_mm_at_0_60"][1], d["reference"], d["stroke_mm"], d["redraws"],
                          d.get("oversample"), r.get("held_out_seed")))
     rate = {t: sum(1 for r in rows if r["verdict"][t]) for t in targets}
     lines.append("")
