@@ -132,22 +132,70 @@ def _run(app, ticks):
         k += 1
 
 
-def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False):
+def _settle_then_mean(app, world, settle_ticks, hold_ticks, spring=False, gauge=None):
     """Run, then average the firmware's force estimate and the true force (mN): the load's
-    (the actuator's force is what the load resists), or with `spring` the spring's."""
+    (the actuator's force is what the load resists), or with `spring` the spring's. With `gauge`
+    (a BenchGauge) the load is left to it: it takes its readings over the hold, and None stands
+    in for the load until its closing tare."""
     import boards.sim.machine as sim
 
     k = 0
     est = 0
     true = 0.0
+    if gauge is not None:
+        gauge.start_hold()
     while k < settle_ticks + hold_ticks:
         sim.run_ticks(1)
         app.heartbeat()
         if k >= settle_ticks:
             est += app.ctrl.meas.force
             true += world.spring_force_n * 1000.0 if spring else -world.external_force_n * 1000.0
+            if gauge is not None and (k - settle_ticks) % GAUGE_EVERY == 0:
+                gauge.read()
         k += 1
-    return est // hold_ticks, int(true / hold_ticks)
+    return est // hold_ticks, (None if gauge is not None else int(true / hold_ticks))
+
+
+GAUGE_EVERY = 10  # ticks between gauge readings over a hold (a display updates about 100 times a second)
+
+
+class BenchGauge:
+    """The load as a bench measures it, not the simulator's true force: what the gauge shows
+    (boards/sim/bench_rig.gauge_reading_n: its ADC channel, with noise, 0.01 N display and zero
+    drift), each reading taken against the tares before and after (fibre slack) interpolated to
+    its time, with the side's sign -- as host/experiments/force_runs.py and
+    host/guided/force_calibration.py do."""
+
+    def __init__(self, world):
+        self.world = world
+        self.tares = []  # (t_s, N)
+        self.holds = []  # per hold, its readings (t_s, N)
+
+    def _reading(self):
+        from boards.sim.bench_rig import gauge_reading_n
+
+        return (self.world.time_s, gauge_reading_n(self.world))
+
+    def tare(self):
+        self.tares.append(self._reading())
+
+    def start_hold(self):
+        self.holds.append([])
+
+    def read(self):
+        self.holds[-1].append(self._reading())
+
+    def loads_mN(self):
+        """The mean load (mN, the actuator's sign) of each hold."""
+        (t0, z0), (t1, z1) = self.tares[0], self.tares[-1]
+        out = []
+        for hold in self.holds:
+            s = 0.0
+            for t, g in hold:
+                zero = z0 + (z1 - z0) * (t - t0) / (t1 - t0) if t1 > t0 else z0
+                s += g - zero
+            out.append(int(-self.world.gauge_side * s / len(hold) * 1000.0))
+        return out
 
 
 def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
@@ -176,13 +224,20 @@ def _hooked_on_side(path, side, anchor, gap_um, board_path="boards/sim.json"):
     return app, world, sign
 
 
-def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/sim.json", stop_mN=0, stop_um=0):
+def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/sim.json", stop_mN=0, stop_um=0,
+                          measured=False):
     """Force identification as the guided step does it, on the simulated actuator: open-loop duty
     steps loading then unloading against a gauge on `side`; rows [d um, load force mN, loading].
     With `stop_mN` (and `stop_um`) the loading ends at the first level whose load (deformation)
     reaches it, as the guided step's --force-range (and CAVITY_NEAR_MM) end it, and the
-    unloading goes down from there."""
-    app, world, sign = _hooked_on_side(path, side, anchor, 1500, board_path)
+    unloading goes down from there. The load is the simulator's true one, or with `measured` what
+    the gauge shows (BenchGauge, tared with the fibre slack before and after; the stop then
+    judges the true load, a shortcut a bench takes by eye)."""
+    gap = 1500
+    app, world, sign = _hooked_on_side(path, side, anchor, gap, board_path)
+    gauge = BenchGauge(world) if measured else None
+    if gauge is not None:
+        gauge.tare()
     app.set_mode("open_loop")
     rows = []
     previous = 0
@@ -200,24 +255,39 @@ def case_force_points_sim(path, side, levels, anchor=45000, board_path="boards/s
         _run(app, 500)  # come to rest against the fibre
         k = 0
         defl = 0
+        if gauge is not None:
+            gauge.start_hold()
         while k < 300:
             _run(app, 1)
             defl += app.ctrl.meas.defl
+            if gauge is not None and k % GAUGE_EVERY == 0:
+                gauge.read()
             k += 1
         rows.append([defl // 300, int(-world.external_force_n * 1000.0), loading])
         if loading and n < top - 1 and ((stop_mN and abs(rows[-1][1]) >= stop_mN) or (stop_um and abs(rows[-1][0]) >= stop_um)):
             top = n + 1  # unload from this level
             n = top - 1
         n += 1
+    if gauge is not None:
+        _back_to_slack(app, anchor - sign * gap)
+        gauge.tare()
+        for row, load_mN in zip(rows, gauge.loads_mN()):
+            row[1] = load_mN
     app.shutdown()
     return rows
 
 
 def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, hold_ticks=500, preload=500,
-                         board_path="boards/sim.json"):
+                         board_path="boards/sim.json", measured=False):
     """Force steps against a gauge on `side`, the fibre just slack, then taken up by a `preload` mN
-    hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each."""
-    app, world, sign = _hooked_on_side(path, side, anchor, 200, board_path)
+    hold (as host/experiments/force_runs.py does): [target, estimate, load] mN each. The load is
+    the simulator's true one, or with `measured` what the gauge shows (BenchGauge: tared with the
+    fibre slack before the steps and after them)."""
+    gap = 200
+    app, world, sign = _hooked_on_side(path, side, anchor, gap, board_path)
+    gauge = BenchGauge(world) if measured else None
+    if gauge is not None:
+        gauge.tare()
     app.set_mode("force")
     if preload:
         app.set_target(sign * preload)
@@ -225,12 +295,24 @@ def case_force_steps_sim(path, side, targets, anchor=45000, settle_ticks=1500, h
     rows = []
     for t in targets:
         app.set_target(t)
-        est, load_mN = _settle_then_mean(app, world, settle_ticks, hold_ticks)
+        est, load_mN = _settle_then_mean(app, world, settle_ticks, hold_ticks, gauge=gauge)
         rows.append([t, est, load_mN])
     st = app.status()
+    if gauge is not None:
+        _back_to_slack(app, anchor - sign * gap)
+        gauge.tare()
+        for row, load_mN in zip(rows, gauge.loads_mN()):
+            row[2] = load_mN
     app.shutdown()
     assert st["faults"] == [] and st["mode"] == "force", st
     return rows
+
+
+def _back_to_slack(app, target_um):
+    """Position mode back to where the fibre hung slack (the closing tare's place)."""
+    app.set_mode("position")
+    app.set_target(target_um)
+    _run(app, 1500)
 
 
 def case_wiper_lift_sim(path, pot):

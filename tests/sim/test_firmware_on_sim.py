@@ -280,3 +280,23 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     write_calibration(path, doc)
     after = {side: _worst_step_error(path, side, sign) for side, sign in SIDES.items()}
     assert max(after.values()) < 0.015, (before, after, lines)
+
+
+def test_bench_gauge_reads_the_load_a_bench_would(cal_path, tmp_path):
+    """The offline tallies' gauge (firmware_cases.BenchGauge: the gauge channel with its noise,
+    display rounding and zero drift, tared with the fibre slack before and after the steps) against
+    the simulator's true load over the same force steps, on a gauge whose zero drifts fast (6 N/min
+    at most, about 1 N over a side's steps): the actuator's sign on both sides, and within 0.15 N
+    of the truth (what the gauge's noise and the drift left after the interpolated tares allow;
+    a reading without the tares or with the wrong sign misses by more)."""
+    board = model.sim_board()
+    board["actuator"]["gauge"].update(drift_n_per_min=6.0, drift_max_n=5.0)
+    board_path = tmp_path / "drifting-gauge.json"
+    board_path.write_text(json.dumps(board))
+    for side, sign in (("high", -1), ("low", 1)):
+        targets = [sign * t for t in (5000, 10000, 15000, 10000, 5000)]
+        call = "case_force_steps_sim(%r, %r, %r, board_path=%r%%s)" % (cal_path, side, targets, str(board_path))
+        true = on_cpython(call % "")
+        measured = on_cpython(call % ", measured=True")
+        for (target, _, load), (_, _, gauge) in zip(true, measured):
+            assert gauge * target > 0 and abs(gauge - load) <= 150, (side, true, measured)
