@@ -67,7 +67,7 @@ class GaugeOnSide:
         self.rig = rig
         self.side = side
         self.start = slack_position_mm(anchor_mm, side, gap_mm)
-        if rig.state["load"].get("kind") == "gauge":  # the other side's gauge would hold the block
+        if (rig.state["load"] or {}).get("kind") == "gauge":  # the other side's gauge would hold the block
             rig.no_load()
         prompter.say("  moving the block to %.1f mm, where the fibre will hang slack" % self.start)
         _move_slack(self.client, self.start)

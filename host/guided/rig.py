@@ -22,7 +22,9 @@ class Rig:
         """`board`: the virtual board the rig mounts things on, None on a real bench."""
         self.prompter = prompter
         self.board = board
-        self.state = {"reference": None, "load": {"kind": "none"}, "fault": None}
+        # "load" None: not known yet (a gauge may still hang from the last session), so the first
+        # no_load() asks; later ones ask only if a step hooked something since
+        self.state = {"reference": None, "load": None, "fault": None}
         if gauge not in ("display", "adc"):
             raise UserError("--gauge must be display or adc")
         if gauge == "adc" and gauge_scale is None:
@@ -39,8 +41,8 @@ class Rig:
     def _do(self, instruction, **change):
         self.state.update(change)
         self.prompter.wait(instruction)
-        if self.virtual:
-            self.board.rig(self.state)
+        if self.virtual:  # a virtual rig starts with nothing hooked
+            self.board.rig(dict(self.state, load=self.state["load"] or {"kind": "none"}))
 
     def mount_reference(self, pot):
         which = "1 (nut, D1)" if pot == "pot1" else "2 (output block, D2)"
@@ -48,6 +50,8 @@ class Rig:
                  reference=pot, load={"kind": "none"})
 
     def no_load(self):
+        if self.state["load"] == {"kind": "none"}:
+            return  # unhooked at the last instruction: asking again only makes the person look twice
         self._do("Unhook the force gauge: the output block must run free end to end (no load).", load={"kind": "none"})
 
     def hook_gauge(self, anchor_mm, side="high", gap_mm=None):
