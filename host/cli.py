@@ -9,6 +9,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import argparse  # noqa: E402
 import importlib
 import pkgutil  # noqa: E402
+import re  # noqa: E402
 import sys  # noqa: E402
 
 import host
@@ -20,6 +21,12 @@ from host.errors import UserError
 class _Parser(argparse.ArgumentParser):
     """A bad option or argument is a user error like any other: one line and exit status 2
     (argparse prints its whole usage block). Subcommand parsers are made of this class too."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        # argparse takes "-1e1" or "-1e300" for an option (its negative numbers are only -5 and
+        # -0.5), so `--to -1e1` read as a missing argument; any float literal is a value here
+        self._negative_number_matcher = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$", re.I)
 
     def error(self, message):
         self.exit(2, "error: %s (see %s --help)\n" % (message, self.prog))

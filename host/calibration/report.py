@@ -118,13 +118,23 @@ def describe(doc, crc=None):
     return lines
 
 
+def _shown(value):
+    """A file's metadata value as a person reads it: "not given" for a missing one, a mapping as
+    name=value pairs, not Python's None and {}."""
+    if value is None or value == {} or value == []:
+        return "not given"
+    if isinstance(value, dict):
+        return ", ".join("%s=%s" % (k, _shown(v)) for k, v in sorted(value.items()))
+    return str(value)
+
+
 def compare(a, b):
     """Lines saying where calibrations `a` and `b` differ, as the board would compute them."""
     lines = []
     same = 0
     for key in ("board", "date", "pots"):
         if a.get(key) != b.get(key):
-            lines.append("%s: %s | %s" % (key, a.get(key), b.get(key)))
+            lines.append("%s: %s | %s" % (key, _shown(a.get(key)), _shown(b.get(key))))
     for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION):
         sa, sb = a.get(name), b.get(name)
         if not sa and not sb:

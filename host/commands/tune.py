@@ -20,7 +20,9 @@ def _values(text):
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
         raise UserError("gain list %r: whole numbers separated by commas, e.g. 500,768,1000" % text) from None
-    if not values or any(not 0 <= v <= 32767 for v in values):
+    if not values:
+        raise UserError("gain list %r is empty: whole numbers separated by commas, e.g. 500,768,1000" % text)
+    if any(not 0 <= v <= 32767 for v in values):
         raise UserError("gain list %r: values must be within 0..32767" % text)
     return values
 
@@ -29,10 +31,10 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "tune", help="step response of the position or force loop: rise, overshoot, settling, error; try gains",
         description="Holds --start, steps the target by --step and records the response for --duration seconds of "
-        "the board's time, then reports rise time (10-90 %%), overshoot, settling time (last exit from target +- "
+        "the board's time, then reports rise time (10-90 %), overshoot, settling time (last exit from target +- "
         "--band), steady-state error (mean of the last fifth) and whether the loop oscillates, and plots it. "
         "--kp/--ki take comma-separated lists: every combination is tried and the best (settles, overshoot at most "
-        "20 %%, then the shortest settling time) is recommended. The gains in force before are put back unless "
+        "20 %, then the shortest settling time) is recommended. The gains in force before are put back unless "
         "--apply (keep the best until the board restarts) or --save (keep it on the board). Force mode needs "
         "something to push against (--port sim: --load gauge).")
     p.add_argument("mode", choices=sorted(LOOPS), help="the loop to tune")
@@ -95,9 +97,9 @@ def run(args):
     if step == 0:
         raise UserError("--step must not be 0")
     grid = {}
-    if args.kp:
+    if args.kp is not None:  # --kp "" is a mistake to report, not the defaults
         grid[names[0]] = _values(args.kp)
-    if args.ki:
+    if args.ki is not None:
         grid[names[1]] = _values(args.ki)
     png = args.png or "tune-%s.png" % args.mode
 

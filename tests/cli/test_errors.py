@@ -32,3 +32,67 @@ def test_a_board_that_disappears_is_one_line(monkeypatch, capsys):
     code = cli.main(["status", "--port", "/dev/null"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "stopped answering" in err[0], err
+
+
+@pytest.mark.parametrize("argv,words", [
+    # a float literal with an exponent is a value, not an unknown option (argparse's own rule
+    # knows only -5 and -0.5), so its range check answers, not "expected one argument"
+    (["move", "--port", "sim", "--to", "-1e300"], "-1e300 is outside"),
+    (["force", "--port", "sim", "--target", "-1e3"], "-1e3 is outside"),
+    # an empty gain list is a mistake, not "use the defaults"
+    (["tune", "position", "--port", "sim", "--kp", ""], "is empty"),
+])
+def test_odd_numbers_are_read_as_the_user_wrote_them(capsys, argv, words):
+    code = cli.main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and err[0].startswith("error: ") and words in err[0], err
+
+
+def test_help_shows_percent_signs_once(capsys):
+    assert cli.main(["tune", "--help"]) == 0
+    out = capsys.readouterr().out
+    assert "10-90 %)" in out and "%%" not in out
+
+
+def test_show_of_two_files_names_missing_values_in_words(tmp_path, capsys):
+    from host.calibration.file import read_calibration, write_calibration
+    from testkit import model
+
+    a, b = tmp_path / "a.json", tmp_path / "b.json"
+    model.write_model_calibration(a)
+    doc = read_calibration(a)
+    doc["board"] = None
+    doc["pots"] = {}
+    write_calibration(b, doc)
+    assert cli.main(["show", str(a), str(b)]) == 0
+    out = capsys.readouterr().out
+    assert "board: sim | not given" in out and "None" not in out and "{}" not in out, out
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["fit", "SWEEP", "--out", "/dev/full"], "/dev/full is not a regular file"),  # hung, memory growing 1 GB/s
+    (["fit", "SWEEP", "--out", "/dev/zero"], "/dev/zero is not a regular file"),  # MemoryError traceback
+    (["fit", "/dev/zero"], "/dev/zero is not a regular file"),
+    (["fit", "DIR"], "is a directory, not a sweep file"),  # was "not found"
+    (["show", "DIR"], "is a directory, not a calibration file"),
+    (["plot", "FIFO"], "is not a regular file"),  # was "no such file"; reading it would wait forever
+    (["show", "BIG"], "larger than any calibration file"),
+])
+def test_user_files_are_checked_before_they_are_read(tmp_path, argv, words):
+    """Each in a fresh process with a deadline: a regression hangs or eats the memory instead."""
+    import os
+    import subprocess
+    import sys
+
+    sweep = tmp_path / "sweep.csv"
+    sweep.write_text("raw,reference\n" + "".join("%d,%.4f\n" % (c, c * 0.016) for c in range(100, 4000, 10)))
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    big = tmp_path / "big.json"
+    with open(big, "wb") as f:
+        f.truncate((1 << 20) + 1)  # sparse: a size, no disk
+    names = {"SWEEP": str(sweep), "DIR": str(tmp_path), "FIFO": str(fifo), "BIG": str(big)}
+    r = subprocess.run([sys.executable, "-m", "host", "-q"] + [names.get(a, a) for a in argv],
+                       capture_output=True, text=True, timeout=120)
+    err = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(err) == 1 and words in err[0], (r.returncode, err)
