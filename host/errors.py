@@ -9,6 +9,27 @@ class UserError(Exception):
     """An error caused by input or environment, with a message that says what to do."""
 
 
+def check_user_file(path, what, max_bytes):
+    """Refuse, before reading it, a file a person named that cannot be `what` (e.g. "calibration
+    file"): missing, a directory, not a regular file (a FIFO or /dev/zero, which never end), or
+    larger than `max_bytes` (no such file is that large; reading it would only take the memory)."""
+    import os
+    import stat
+
+    try:
+        st = os.stat(path)
+    except FileNotFoundError:
+        raise UserError("no %s at %s" % (what, path)) from None
+    except OSError as exc:
+        raise UserError("cannot read %s %s: %s" % (what, path, exc.strerror or exc)) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise UserError("%s is a directory, not a %s" % (path, what))
+    if not stat.S_ISREG(st.st_mode):
+        raise UserError("%s is not a regular file (a device or a pipe?), not a %s" % (path, what))
+    if st.st_size > max_bytes:
+        raise UserError("%s is %d bytes, larger than any %s (at most %d)" % (path, st.st_size, what, max_bytes))
+
+
 def _installed_from():
     """Where pip installed this package from when it was a local directory (PEP 610's
     direct_url.json), else None (an index, a wheel file, or no record)."""

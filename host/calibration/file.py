@@ -38,10 +38,11 @@ from firmware.calibration import (
     stroke_constants,
 )
 from firmware.pwl_fixed import DF_PWL_OFFSET
-from host.errors import UserError
+from host.errors import UserError, check_user_file
 from host.calibration.fixed_export import export_force_table, export_poly, export_pot
 
 SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION)
+MAX_FILE_BYTES = 1 << 20  # ours are a few KB (the board reads at most 64 KiB); 1 MiB is no calibration
 INFO_KEYS = ("board", "date", "pots")
 
 
@@ -140,10 +141,9 @@ def write_calibration(path, doc):
 def read_calibration(path):
     """The verified payload dict of the calibration file at `path` (UserError if unusable)."""
     path = Path(path)
+    check_user_file(path, "calibration file", MAX_FILE_BYTES)
     try:
         raw = path.read_bytes()
-    except FileNotFoundError:
-        raise UserError("no calibration file at %s" % path) from None
     except OSError as e:
         raise UserError("cannot read %s: %s" % (path, e.strerror)) from None
     try:

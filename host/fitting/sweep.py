@@ -25,7 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
-from host.errors import UserError
+from host.errors import UserError, check_user_file
 from host.fitting.noise_floor import estimate_noise
 
 MIN_POINTS = 20  # fewer cannot pin down a 7-parameter BCM-3 with any redundancy
@@ -64,14 +64,16 @@ def _number(text, column, line):
     return value
 
 
+MAX_SWEEP_BYTES = 256 << 20  # millions of rows: far beyond any sweep, short of filling the memory
+
+
 def load_sweep(path, full_scale=None):
     """Read and clean a sweep CSV (see the module docstring); raises UserError on bad input.
 
     `full_scale`: the converter's full scale in raw units (e.g. 3.3 for volts); by default it is
     guessed only when raw looks like ADC codes, and without it there is no coverage check."""
     path = Path(path)
-    if not path.is_file():
-        raise UserError("sweep file not found: %s" % path)
+    check_user_file(path, "sweep file", MAX_SWEEP_BYTES)
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
             rows = list(csv.reader(fh))

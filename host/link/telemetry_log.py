@@ -199,14 +199,18 @@ def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1
     return recording.summary
 
 
+MAX_LOG_BYTES = 2 << 30  # hours at 1 kHz; a larger file would not fit the plot's arrays anyway
+
+
 def load(path):
     """A logged CSV as a dict field -> numpy int64 array."""
     import warnings
 
     import numpy as np
 
-    from host.errors import UserError
+    from host.errors import UserError, check_user_file
 
+    check_user_file(path, "telemetry log", MAX_LOG_BYTES)
     try:
         with open(path) as fh:
             header = fh.readline().strip().split(",")
