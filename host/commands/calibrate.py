@@ -122,10 +122,9 @@ def method_options(args):
 def options_from(args):
     out = Path(args.out)
     plots = Path(args.plots) if args.plots else (out.parent if str(out.parent) else Path("."))
-    plots.mkdir(parents=True, exist_ok=True)
-
     if not 100 <= args.duty <= 6000:
         raise UserError("--duty must be within 100..6000")
+    plots.mkdir(parents=True, exist_ok=True)
     return Options(out=out, out_dir=plots, reference=args.reference, manual_points=args.manual_points,
                    duty=args.duty, anchor_mm=args.anchor_mm, rounds=max(1, args.rounds),
                    levels=max(3, args.levels), max_duty=args.max_duty, force_range=args.force_range, flash=not args.no_flash, fix=args.fix,
@@ -168,11 +167,31 @@ def _stop_log(log, why):
         print("warning: could not write the run log %s: %s" % (log.json_path, exc.strerror or exc), file=sys.stderr)
 
 
+def _missing_folders(path):
+    """The folders above file `path` that do not exist yet, deepest first."""
+    out = []
+    folder = Path(path).absolute().parent
+    while not folder.exists():
+        out.append(folder)
+        folder = folder.parent
+    return out
+
+
+def _remove_if_empty(folders):
+    """Take back the folders this run made, deepest first, where it left nothing in them."""
+    for folder in folders:
+        try:
+            folder.rmdir()
+        except OSError:  # not empty (or gone): leave it
+            return
+
+
 def run(args):
     import sys
 
     from host.guided.run_log import RunLog
 
+    made = _missing_folders(args.out) + (_missing_folders(Path(args.plots) / "x") if args.plots else [])
     log = RunLog(args.out, "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host calibrate")
     try:
         accepted = calibrate(args, log=log)
@@ -180,12 +199,16 @@ def run(args):
         _stop_log(log, str(exc))
         raise
     except (Exception, KeyboardInterrupt) as exc:
-        if not log.measured:  # nothing measured yet (no board, a bad option): the usual one line
+        if not log.measured and not isinstance(exc, KeyboardInterrupt):
+            # nothing measured (no board, a bad option): the usual one line, and no folder left behind
+            _remove_if_empty(sorted(made, key=lambda p: len(p.parts), reverse=True))
             raise
         why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         _stop_log(log, why)
-        print("error: the calibration stopped during %s: %s; what it measured is in %s and %s" % (
-            log.results["phase"], why, log.json_path, log.report_path), file=sys.stderr)
+        phase = log.results["phase"]
+        print("error: the calibration stopped %s: %s; %s in %s and %s" % (
+            "during %s" % phase if phase else "before its first step", why,
+            "what it measured is" if log.measured else "the run log is", log.json_path, log.report_path), file=sys.stderr)
         return 1
     log.finish()
     print("calibration %s: %s accepted (results: %s)" % (args.out, ", ".join(accepted) or "nothing", log.report_path))

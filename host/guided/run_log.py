@@ -53,6 +53,7 @@ class RunLog:
         self.save()
 
     def save(self):
+        self.json_path.parent.mkdir(parents=True, exist_ok=True)  # a run stopped before it made the folder
         _atomic_write(self.json_path, json.dumps(self.results, indent=1) + "\n")
         _atomic_write(self.report_path, self.report())
 
@@ -61,8 +62,10 @@ class RunLog:
         lines = ["# Calibration run", "", "`%s`, started %s, board %s; calibration file %s." % (
             r["command"], r["started"], r["board"], r["calibration"]), ""]
         if r["stopped"]:
-            lines += ["**Stopped during %s**: %s. The calibration file holds only the steps accepted before "
-                      "(the previous file, if any, was kept under a dated name)." % (r["stopped"]["phase"], r["stopped"]["why"]), ""]
+            phase = r["stopped"]["phase"]
+            lines += ["**Stopped %s**: %s. The calibration file holds only the steps accepted before "
+                      "(the previous file, if any, was kept under a dated name)." % (
+                          "during %s" % phase if phase else "before its first step", r["stopped"]["why"]), ""]
         elif r["finished"]:
             lines += ["Finished %s." % r["finished"], ""]
         for s in r["steps"]:

@@ -167,3 +167,24 @@ def test_new_pot_curves_without_end_stops_drop_the_old_ones(old_file, monkeypatc
     assert now.get("stroke") is None and now["pot1"]["pot_id"] == "pot1-new"
     (backup,) = _backups(old_file)
     assert json.loads(backup.read_text())["payload"]["stroke"]["fixed"] == [120, 59880]
+
+
+def test_a_calibrate_that_never_started_leaves_no_folder_and_ctrl_c_leaves_a_log(tmp_path, monkeypatch, capsys):
+    """No board: one line, status 2, and the --out folders the run would have made are not left
+    behind. Ctrl-C before the first step: status 1 and a run log saying so (docs/guided-calibration.md)."""
+    from host import cli
+    from host.commands import calibrate as command
+
+    out = tmp_path / "new" / "deeper" / "cal.json"
+    code = cli.main(["calibrate", "--port", str(tmp_path / "no-such-port"), "--out", str(out), "--yes"])
+    assert code == 2 and not (tmp_path / "new").exists(), capsys.readouterr().err
+
+    def interrupted(args, say=print, ask=None, log=None):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(command, "calibrate", interrupted)
+    code = cli.main(["calibrate", "--port", "sim", "--out", str(out), "--yes"])
+    err = capsys.readouterr().err
+    assert code == 1 and "before its first step" in err, err
+    results = json.loads((out.parent / (out.stem + ".results.json")).read_text())
+    assert results["stopped"] == {"phase": None, "why": "interrupted (Ctrl-C)"}
