@@ -202,8 +202,9 @@ def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1
 MAX_LOG_BYTES = 2 << 30  # hours at 1 kHz; a larger file would not fit the plot's arrays anyway
 
 
-def load(path):
-    """A logged CSV as a dict field -> numpy int64 array."""
+def load(path, warn=None):
+    """A logged CSV as a dict field -> numpy int64 array. A last line cut short (the logger
+    killed mid-write, the disk full) is left out, with a word to `warn` if given."""
     import warnings
 
     import numpy as np
@@ -213,12 +214,22 @@ def load(path):
     check_user_file(path, "telemetry log", MAX_LOG_BYTES)
     try:
         with open(path) as fh:
-            header = fh.readline().strip().split(",")
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # numpy warns on an empty file; we say it below
-            data = np.loadtxt(path, delimiter=",", skiprows=1, dtype=np.int64, ndmin=2)
+            text = fh.read()
     except OSError as exc:
         raise UserError("cannot read %s: %s" % (path, exc.strerror or exc)) from None
+    except UnicodeDecodeError:
+        raise UserError("%s is not a telemetry log (host log writes one): not text" % path) from None
+    lines = text.splitlines()
+    header = lines[0].strip().split(",") if lines else [""]
+    rows = lines[1:]
+    if rows and not text.endswith("\n"):
+        rows = rows[:-1]
+        if warn:
+            warn("%s: the last line is cut short (the log stopped mid-write): left out" % path)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # numpy warns on an empty file; we say it below
+            data = np.loadtxt(rows, delimiter=",", dtype=np.int64, ndmin=2)
     except ValueError as exc:
         raise UserError("%s is not a telemetry log (host log writes one): %s" % (path, str(exc).splitlines()[0])) from None
     if data.size == 0:

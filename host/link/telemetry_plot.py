@@ -85,7 +85,7 @@ def plot(csv_path, out_path, warn=None):
     """Draw the run in `csv_path` into the PNG `out_path`; returns out_path."""
     from matplotlib.figure import Figure
 
-    d = load(csv_path)
+    d = load(csv_path, warn)
     raw = uncalibrated(d)
     if raw and warn:
         warn("%s: %s are all 0 (logged from a board without calibration?): plotting the raw ADC codes "

@@ -96,3 +96,15 @@ def test_user_files_are_checked_before_they_are_read(tmp_path, argv, words):
                        capture_output=True, text=True, timeout=120)
     err = r.stderr.strip().splitlines()
     assert r.returncode == 2 and len(err) == 1 and words in err[0], (r.returncode, err)
+
+
+def test_a_log_cut_mid_line_is_plotted_without_its_last_line(tmp_path, capsys):
+    pytest.importorskip("matplotlib")
+    from firmware.protocol import FIELDS
+
+    path = tmp_path / "run.csv"
+    rows = "".join(",".join(str(1000 * i if k == 0 else 100 + i + k) for k in range(len(FIELDS))) + "\n" for i in range(50))
+    path.write_text(",".join(FIELDS) + "\n" + rows + "50000,20")  # the logger killed mid-write
+    code = cli.main(["plot", str(path), "--out", str(tmp_path / "run.png")])
+    err = capsys.readouterr().err
+    assert code == 0 and (tmp_path / "run.png").exists() and "cut short" in err, err
