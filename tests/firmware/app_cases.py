@@ -192,6 +192,94 @@ def case_keyboard_interrupt(path):
     return {"duty_seen": link.duty_seen}
 
 
+def case_stop_turns_the_bridge_off(path):
+    """Open loop running, then stop(): both PWM outputs 0 at once, without another step."""
+    data = load(path)
+    app, _ = replay_app(data)
+    app.set_mode("open_loop")
+    app.set_target(5000)
+    run_steps(app.step, 5)
+    running = max(pwm_duties(app))
+    app.stop()
+    assert pwm_duties(app) == [0, 0], pwm_duties(app)
+    assert app.ctrl.mode == 0 and app.ctrl.duty == 0
+    return {"running": running}
+
+
+def case_motor_clamps(path):
+    """motor.set beyond +-DUTY_MAX: the duty kept and the PWM written are full scale, no more."""
+    data = load(path)
+    app, _ = replay_app(data)
+    duty, u16 = [], []
+    for asked in (20000, -20000):
+        app.motor.set(asked)
+        duty.append(app.motor.duty)
+        u16.append(max(pwm_duties(app)))
+    app.motor.off()
+    return {"duty": duty, "u16": u16}
+
+
+def case_position_output_clamp(path, ff_path):
+    """Position mode far from the target both ways with a feed-forward calibration and a small
+    out_limit: the duty the step writes is exactly +-out_limit (PI saturated, feed-forward added,
+    then clamped)."""
+    from firmware.calibration import load_calibration as load_file
+
+    data = load(path)
+    app, _ = replay_app(data, calibration=None)
+    app.set_calibration(load_file(ff_path))
+    limit = 3000
+    app.set_param("out_limit", limit)
+    app.set_mode("position")
+    duty = []
+    for target in (65000, -65000):  # beyond either soft limit: the error stays large
+        app.set_target(target)
+        run_steps(app.step, 30)
+        duty.append(app.ctrl.duty)
+    app.stop()
+    from firmware.measurement import FF_DUTY
+
+    ff_duty = app.ctrl.meas.st[FF_DUTY]
+    return {"duty": duty, "out_limit": limit, "ff_duty": ff_duty}
+
+
+def case_board_main_stops_what_run_left_running(path):
+    """board_main.run with an App.run that drives the bridge and then raises without its own
+    shutdown: the bridge is off when board_main.run has returned (by the exception)."""
+    import firmware.app as app_module
+    from firmware import board_main
+
+    data = load(path)
+    _, machine = replay_app(data, calibration=None)
+    seen = {}
+
+    def run_that_escapes(self, link=None):
+        self.set_mode("open_loop")
+        self.set_target(4000)
+        run_steps(self.step, 5)
+        seen["app"] = self
+        seen["during"] = max(pwm_duties(self))
+        raise KeyboardInterrupt
+
+    class QuietLink:  # the real one writes its binary hello to stdout, where this case reports
+        def __init__(self, app):
+            pass
+
+        def hello(self):
+            pass
+
+    original = app_module.App.run, board_main.Link
+    app_module.App.run, board_main.Link = run_that_escapes, QuietLink
+    try:
+        board_main.run("boards/sim.json", "no-calibration.json", machine=machine, exit_path=None, params_path=None)
+        raise AssertionError("board_main.run swallowed the exception")
+    except KeyboardInterrupt:
+        pass
+    finally:
+        app_module.App.run, board_main.Link = original
+    return {"during": seen["during"], "after": pwm_duties(seen["app"])}
+
+
 def case_refused_without_calibration(path):
     data = load(path)
     app, _ = replay_app(data, calibration=None)
@@ -524,7 +612,10 @@ def case_range_checks(path):
     refuse(app.set_target, 10001)
     refuse(app.set_target, -10001)
     app.set_mode("force")
+    before = app.ctrl.target
     refuse(app.set_target, 200001)
+    refuse(app.set_target, -200001)
+    assert app.ctrl.target == before
     for name, default, lo, hi, _ in PARAMS:
         refuse(app.set_param, name, lo - 1)
         refuse(app.set_param, name, hi + 1)

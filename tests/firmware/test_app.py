@@ -62,6 +62,37 @@ def test_exception_in_step_leaves_pwm_zero(data_path):
     assert "OSError" in here["fault"] and "OSError" in there["fault"]
 
 
+def test_stop_turns_the_bridge_off_at_once(data_path):
+    """App.stop (what the `stop` command and every exit call) leaves both PWM outputs at 0 before
+    the next control step, not only the duty the next step would write."""
+    here, there = both("case_stop_turns_the_bridge_off(PATH)", data_path)
+    assert here == there and here["running"] > 0
+
+
+def test_the_motor_clamps_both_directions(data_path):
+    """The motor's own clamp, the last line before the bridge: +-20000 asked, +-10000 (full
+    scale, 65535) written, on both interpreters (viper on MicroPython)."""
+    here, there = both("case_motor_clamps(PATH)", data_path)
+    assert here == there == {"duty": [10000, -10000], "u16": [65535, 65535]}
+
+
+def test_the_position_loop_output_stays_within_out_limit_with_feed_forward(data_path, tmp_path):
+    """Position mode with a friction feed-forward (the friction section's ff_duty) and the PI
+    saturated: PI output plus the feed-forward is clamped to +-out_limit in both directions."""
+    ff = tmp_path / "ff.json"
+    model.write_model_calibration(ff, feed_forward=True)
+    here, there = both("case_position_output_clamp(PATH, %r)" % str(ff), data_path)
+    assert here == there
+    assert here["ff_duty"] > 0 and here["duty"] == [here["out_limit"], -here["out_limit"]], here
+
+
+def test_board_main_stops_the_motor_whatever_escapes_the_app(data_path):
+    """board_main.run's last line of defence: an App.run that ends by an exception with the bridge
+    still driven (its own shutdown failed or was bypassed) leaves it off once run returns."""
+    here, there = both("case_board_main_stops_what_run_left_running(PATH)", data_path)
+    assert here == there and here["during"] > 0 and here["after"] == [0, 0]
+
+
 def test_keyboard_interrupt_in_run_leaves_pwm_zero(data_path):
     here, there = both("case_keyboard_interrupt(PATH)", data_path)
     assert here["duty_seen"] > 0 and here == there
@@ -163,6 +194,10 @@ def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
     assert len(here["why"]) == len(there["why"]) == len(files)
     for why in (here["why"][-1], there["why"][-1]):  # a directory is not a missing file
         assert "cannot read" in why and "no calibration file" not in why, why
+    names = list(files)
+    for name in ("nested.json", "huge.json"):  # refused by their size, before the heap is asked for them
+        for why in (here["why"][names.index(name)], there["why"][names.index(name)]):
+            assert "larger than 65536" in why, (name, why)
 
 
 def schema_1(payload):
