@@ -147,6 +147,11 @@ class App:
         for i in range(len(PARAMS)):
             self.ctrl.p[i] = self.defaults[i]
         saved, self.params_file_error = saved_params.load(params_path, PARAMS)
+        lo_i, hi_i = self._param_index("stroke_min_um"), self._param_index("stroke_max_um")
+        lo, hi = saved.get(lo_i, self.defaults[lo_i]), saved.get(hi_i, self.defaults[hi_i])
+        if lo >= hi:  # each in its range, but no position between them: every move would be refused
+            self.params_file_error = "%s unusable: stroke_min_um %d not below stroke_max_um %d" % (params_path, lo, hi)
+            saved = {}
         self.params_from_file = bool(saved)
         for i in saved:
             self.ctrl.p[i] = saved[i]
@@ -353,6 +358,12 @@ class App:
         lo, hi = PARAMS[i][2], PARAMS[i][3]
         if not lo <= value <= hi:
             raise ValueError("%s must be within %d..%d" % (name, lo, hi))
+        if name == "stroke_min_um" or name == "stroke_max_um":  # the pair must leave room to move
+            other = self.ctrl.p[self._param_index("stroke_max_um" if name == "stroke_min_um" else "stroke_min_um")]
+            if (value >= other) if name == "stroke_min_um" else (value <= other):
+                raise ValueError("%s %d would leave no stroke: it must be %s stroke_%s_um (%d)" % (
+                    name, value, "below" if name == "stroke_min_um" else "above",
+                    "max" if name == "stroke_min_um" else "min", other))
         self.safety.heard()
         if temporary and not self.temporary[i]:
             self.before_temporary[i] = self.ctrl.p[i]

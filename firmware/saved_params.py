@@ -75,7 +75,10 @@ def load(path, table):
     except MemoryError:
         return {}, "%s too large" % use
     except Exception as exc:  # ValueError from _parse or int(), OSError, UnicodeError
-        return {}, "%s unusable: %s" % (use, exc)
+        why = str(exc)
+        if not why:  # random bytes: MicroPython's UnicodeError says nothing
+            why = "%s (not a text params file)" % type(exc).__name__
+        return {}, "%s unusable: %s" % (use, why)
 
 
 def save(path, table, values):

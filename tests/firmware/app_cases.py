@@ -842,3 +842,35 @@ def case_df_table(path, codes):
 
     m = Measurement(load_file(path))
     return [[m._d1(m.conv1(c, m.k1)), m.conv1(c, m.k1)] for c in codes]
+
+
+def case_stroke_limits_must_leave_a_stroke(path, params_path, junk_path):
+    """stroke_min_um must stay below stroke_max_um: set_param refuses a value that would cross the
+    other (each alone is within its range), and a saved file with such a pair is refused whole at
+    boot with the reason, the defaults standing. A params file of random bytes is refused with a
+    reason that says something."""
+    from firmware import saved_params
+    from firmware.app import App
+    from firmware.protocol import PARAMS
+
+    data = load(path)
+    app, machine = replay_app(data)
+    refused = []
+    for name, value in (("stroke_min_um", 59500), ("stroke_min_um", 60000), ("stroke_max_um", 500), ("stroke_max_um", -100)):
+        try:
+            app.set_param(name, value)
+        except ValueError as exc:
+            refused.append(str(exc))
+            continue
+        raise AssertionError("accepted %s=%d" % (name, value))
+    assert app.status()["stroke_um"] == [500, 59500], app.status()["stroke_um"]
+    app.set_param("stroke_min_um", -65535)  # opening both, min first, is fine
+    app.set_param("stroke_max_um", 65535)
+    values = [row[1] for row in PARAMS]
+    values[[row[0] for row in PARAMS].index("stroke_min_um")] = 40000
+    values[[row[0] for row in PARAMS].index("stroke_max_um")] = 30000
+    saved_params.save(params_path, PARAMS, values)
+    booted = App("boards/sim.json", None, machine=machine, params_path=params_path)
+    junk = App("boards/sim.json", None, machine=machine, params_path=junk_path)
+    return {"refused": len(refused), "first": refused[0], "file_error": booted.params_file_error,
+            "stroke": booted.status()["stroke_um"], "junk_error": junk.params_file_error}

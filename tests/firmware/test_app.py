@@ -290,3 +290,18 @@ def test_the_main_loop_rests_between_passes_until_input_or_its_pass_is_due(monke
     del wakes[:]
     app_module._rest(idle, None)
     assert len(wakes) == 1  # a link that cannot say (a test's): one idle() per pass, as before
+
+
+def test_stroke_limits_must_leave_a_stroke(data_path, tmp_path):
+    """Inverted soft limits (each within its range) were accepted by `set` and from params.txt, and
+    every later move was then refused; a random params.txt was refused with a blank reason."""
+    junk = tmp_path / "junk.txt"
+    junk.write_bytes(bytes(range(128, 256)) * 8)
+    call = "case_stroke_limits_must_leave_a_stroke(PATH, %r, %r)"
+    here = interpreters.on_cpython(CASES, call.replace("PATH", repr(data_path)) % (str(tmp_path / "a.txt"), str(junk)))
+    there = interpreters.on_micropython(CASES, call.replace("PATH", repr(data_path)) % (str(tmp_path / "b.txt"), str(junk)))
+    for out in (here, there):
+        assert out["refused"] == 4 and "would leave no stroke" in out["first"], out
+        assert "stroke_min_um 40000 not below stroke_max_um 30000" in out["file_error"], out
+        assert out["stroke"] == [500, 59500], out
+        assert out["junk_error"].split("unusable:")[1].strip(), out
