@@ -90,8 +90,10 @@ def _payload_of(text):
         except ValueError:
             raise CalibrationError("not valid JSON")
         doc = _envelope(head)
-        if doc["schema"] != 2 or end < i:
+        if doc["schema"] != 2:
             raise CalibrationError("schema %r file laid out as schema 2" % (doc["schema"],))
+        if end < i:  # the envelope's closing brace is gone: the file stops short
+            raise CalibrationError("truncated: the file ends inside its payload")
         return doc, text[i + len(PAYLOAD_KEY) : end]
     try:
         doc = json.loads(text)

@@ -108,3 +108,15 @@ def test_a_log_cut_mid_line_is_plotted_without_its_last_line(tmp_path, capsys):
     code = cli.main(["plot", str(path), "--out", str(tmp_path / "run.png")])
     err = capsys.readouterr().err
     assert code == 0 and (tmp_path / "run.png").exists() and "cut short" in err, err
+
+
+def test_a_truncated_calibration_is_called_truncated(tmp_path, capsys):
+    from testkit import model
+
+    path = tmp_path / "cal.json"
+    model.write_model_calibration(path)
+    text = path.read_text()
+    path.write_text(text[: len(text) // 2])  # a copy that stopped half way
+    assert cli.main(["show", str(path)]) == 2
+    err = capsys.readouterr().err
+    assert "truncated" in err and "laid out" not in err, err
