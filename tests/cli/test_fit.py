@@ -117,7 +117,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, name):
 
 def test_missing_file_and_bad_order(tmp_path, capsys):
     assert main(["fit", str(tmp_path / "missing.csv")]) == 2
-    assert "not found" in capsys.readouterr().err
+    assert "no sweep file at" in capsys.readouterr().err
     assert main(["fit", EXAMPLE, "--order", "0"]) == 2
     assert "--order" in capsys.readouterr().err
 
