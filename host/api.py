@@ -70,7 +70,8 @@ def _load(load):
 class Board:
     """A board on `port`: a serial device, "auto" (the one board `host ports` finds) or "sim" (a
     virtual board started for the life of this object, with `board`, `calibration` and `load`,
-    e.g. "gauge@45"). The firmware's version and protocol are checked on opening;
+    e.g. "gauge@45"; on boards/sim.json it starts with the simulated actuator's shipped
+    calibration unless `calibration` is given or `uncalibrated`). The firmware's version and protocol are checked on opening;
     `require_calibration` also refuses a board without a usable calibration.
 
     Closing stops the motor (mode idle). `stop_on_exit=False` leaves a motion running when the
@@ -78,9 +79,10 @@ class Board:
     stops it."""
 
     def __init__(self, port="auto", board=None, calibration=None, load=None, require_calibration=False,
-                 stop_on_exit=True, uf2=None):
+                 stop_on_exit=True, uf2=None, uncalibrated=False):
         self.stop_on_exit = stop_on_exit
-        self._opener = open_board(port, board, calibration, _load(load), uf2=uf2, require_calibration=require_calibration)
+        self._opener = open_board(port, board, calibration, _load(load), uf2=uf2, ready=not uncalibrated,
+                                  require_calibration=require_calibration)
         self.client = self._opener.__enter__()
         self._link = self.client  # a Recording while log() is active: motions stream through it
 

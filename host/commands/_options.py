@@ -61,7 +61,10 @@ def add_port_arguments(parser):
     parser.add_argument("--port", default="auto", help=PORT_HELP)
     parser.add_argument("--board", default=None, help="board file for --port sim (default boards/sim.json; "
                         "sim:rp2040: boards/pico.json)")
-    parser.add_argument("--calibration", default=None, help="calibration.json for --port sim or sim:rp2040")
+    parser.add_argument("--calibration", default=None, help="calibration.json for --port sim or sim:rp2040 (default "
+                        "for --port sim on boards/sim.json: boards/sim/calibration.json, the simulated actuator's)")
+    parser.add_argument("--uncalibrated", action="store_true",
+                        help="--port sim: start the virtual board without a calibration, as from the factory")
     add_load_argument(parser)
     add_uf2_argument(parser)
 

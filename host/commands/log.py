@@ -29,7 +29,8 @@ def run(args):
     def progress(s):
         progress_line("%8d samples  %7.1f/s  lost frames %d  board drops %d" % (s.samples, s.rate, s.lost_frames, s.board_dropped), every=1.0)
 
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2) as board:
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
+               uncalibrated=args.uncalibrated) as board:
         status = board.client.status_info or {}
         if status.get("calibration_crc") is None:
             print("warning: the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, "

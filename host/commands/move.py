@@ -33,7 +33,8 @@ def run_motion(args, motion, unit):
     def progress(value, seconds):
         progress_line("%6.2f s  %8.3f %s" % (seconds, value, unit), every=1.0)
 
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2, require_calibration=True,
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
+               uncalibrated=args.uncalibrated, require_calibration=True,
                stop_on_exit=not args.hold) as board:
         if args.log:
             outcome, summary, png = watched(board, args.log, args.rate, args.live, lambda _: motion(board, progress))

@@ -59,7 +59,8 @@ def describe(table, saved=None):
 
 
 def run(args):
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2) as board:
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
+               uncalibrated=args.uncalibrated) as board:
         table = board.params()
         reads, sets = parse_items(args.items, table)  # all checked before anything is set
         if args.defaults:

@@ -17,6 +17,6 @@ def cleared(board):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2) as board:
+    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as board:
         print(cleared(board))
     return 0

@@ -5,7 +5,7 @@ import signal
 import time
 
 from host.commands._options import add_load_argument, add_uf2_argument
-from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
+from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard, ready_calibration
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -27,7 +27,9 @@ def add_parser(subparsers):
                    help="unix (default): the MicroPython unix port; rp2040: an emulated Pico")
     p.add_argument("--board", default=None, help="board file (default boards/sim.json; --chip rp2040: boards/pico.json)")
     p.add_argument("--calibration", default=None, help="calibration.json to put on the board (--chip rp2040: "
-                   "installed with the firmware by host flash)")
+                   "installed with the firmware by host flash; default for boards/sim.json on the unix port: "
+                   "boards/sim/calibration.json, the simulated actuator's own)")
+    p.add_argument("--uncalibrated", action="store_true", help="start without a calibration, as from the factory")
     p.add_argument("--root", default=None, help="directory to use as the unix-port board's flash (default: a temp dir, "
                    "removed at the end)")
     add_uf2_argument(p)
@@ -71,10 +73,14 @@ def run(args):
         if args.chip == "rp2040":
             board, path, what = _emulated_pico(args)
         else:
-            board = VirtualBoard(board=args.board or str(DEFAULT_BOARD), calibration=args.calibration,
-                                 root=args.root, load=args.load)
+            board_path = args.board or str(DEFAULT_BOARD)
+            calibration = args.calibration
+            if calibration is None and not args.uncalibrated:
+                calibration = ready_calibration(board_path)
+            board = VirtualBoard(board=board_path, calibration=calibration, root=args.root, load=args.load)
             path = board.start()
-            what = "virtual board (flash in %s)" % board.root
+            what = "virtual board (flash in %s) with %s" % (board.root, "calibration %s" % calibration if calibration
+                                                           else "no calibration")
         print(path, flush=True)
         print("%s running; Ctrl-C to stop" % what, flush=True)
         while True:

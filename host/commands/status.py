@@ -75,7 +75,8 @@ def describe(status):
 
 
 def run(args):
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2) as board:
+    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
+               uncalibrated=args.uncalibrated) as board:
         status = board.status()
     if args.json:
         print(json.dumps(status, indent=1, sort_keys=True))

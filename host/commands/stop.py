@@ -16,7 +16,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2) as board:
+    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as board:
         board.call("stop")
         faults = board.call("status").get("faults") or []
         if faults == ["host_timeout"]:

@@ -106,7 +106,7 @@ def run(args):
     def progress(i, n, gains):
         progress_line("trial %d/%d: %s" % (i + 1, n, " ".join("%s=%d" % kv for kv in gains.items())))
 
-    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, require_calibration=True) as board:
+    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated, require_calibration=True) as board:
         if args.mode == "position":
             lo, hi = (v / 1000.0 for v in board.call("status")["stroke_um"])
             if not (lo <= start <= hi and lo <= start + step <= hi):

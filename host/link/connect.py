@@ -35,7 +35,7 @@ def virtual_kind(port):
 class BoardPort:
     """The serial path of a board for one command; for `sim` the virtual board behind it."""
 
-    def __init__(self, port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None):
+    def __init__(self, port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False):
         from host.link.ports import resolve
 
         self.port = resolve(port)
@@ -45,6 +45,7 @@ class BoardPort:
         self.factory = factory
         self.uf2 = uf2
         self.progress = progress
+        self.ready = ready  # a unix-port virtual board of boards/sim.json starts calibrated
         self.virtual = None
         self.path = None
 
@@ -68,14 +69,17 @@ class BoardPort:
         if chip == "rp2040":
             return self._open_pico()
         from host.link.flashing import resolve_board
-        from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard
+        from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard, ready_calibration
 
         board_path, board = resolve_board(self.board or str(DEFAULT_BOARD))
         if not board.get("simulated"):
             raise UserError("a virtual board needs a simulated board file, not %s" % board_path)
         if self.calibration is not None and not Path(self.calibration).is_file():
             raise UserError("calibration file not found: %s" % self.calibration)
-        self.virtual = VirtualBoard(board=board_path, calibration=self.calibration, load=self.load,
+        calibration = self.calibration
+        if calibration is None and self.ready and self.factory:
+            calibration = ready_calibration(board_path)
+        self.virtual = VirtualBoard(board=board_path, calibration=calibration, load=self.load,
                                     factory=self.factory)
         self.path = self.virtual.start()
         return self
@@ -119,22 +123,26 @@ def _note(text):
     note(text)
 
 
-def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None):
+def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False):
     """A BoardPort for `port` (use as a context manager): a device path as it is, `auto` resolved,
     `sim` a virtual board with `board` (name or file, default boards/sim.json), `calibration` on
     its flash and `load` (a host.link.virtual_board.parse_load dict) hooked on its block;
     `sim:rp2040` an emulated Pico running the MicroPython `uf2` (default $LSEA_PICO_UF2) with
     `board` (default boards/pico.json), our firmware and `calibration` installed by host flash;
     `factory=False` leaves its flash empty (for `host flash`). `progress(text)`: what a starting
-    emulated Pico says (default: progress lines on stderr)."""
-    return BoardPort(port, board, calibration, load, factory, uf2, progress)
+    emulated Pico says (default: progress lines on stderr). `ready`: a `sim` board of
+    boards/sim.json without `calibration` gets the shipped one (virtual_board.READY_CALIBRATION)
+    instead of starting uncalibrated."""
+    return BoardPort(port, board, calibration, load, factory, uf2, progress, ready)
 
 
 class open_board:
     """Context manager: a BoardClient on `port` (any form open_port takes), handshake done."""
 
-    def __init__(self, port, board=None, calibration=None, load=None, uf2=None, **client_options):
-        self.where = open_port(port, board, calibration, load, uf2=uf2)
+    def __init__(self, port, board=None, calibration=None, load=None, uf2=None, ready=True, **client_options):
+        """`ready`: a `sim` board of boards/sim.json starts with the shipped calibration unless
+        `calibration` is given (open_port); False: uncalibrated, as from the factory."""
+        self.where = open_port(port, board, calibration, load, uf2=uf2, ready=ready)
         self.options = client_options
         self.client = None
 

