@@ -32,7 +32,7 @@ import numpy as np
 
 from host.experiments import displacement, force_runs
 from host.fitting.assembly import STOP_ZONE_UM, near_the_stops
-from host.guided import acquire
+from host.guided import acquire, stroke
 from host.guided.force_calibration import SIDES
 from host.guided.friction_trim import trim_magnitudes
 
@@ -71,8 +71,8 @@ def _draw(rng, lo, hi, n, avoid, gap, tries=2000):
 
 
 def draw_positions(rng, stroke_mm, n=POSITIONS, paper_targets=displacement.TARGETS_MM):
-    """`n` positions within the soft limits `stroke_mm` (0.5 mm inside), off `paper_targets`."""
-    lo, hi = stroke_mm[0] + 0.5, stroke_mm[1] - 0.5
+    """`n` positions within the soft limits `stroke_mm` (LIMIT_MARGIN_MM inside), off `paper_targets`."""
+    lo, hi = stroke_mm[0] + stroke.LIMIT_MARGIN_MM, stroke_mm[1] - stroke.LIMIT_MARGIN_MM
     return sorted(_draw(rng, lo, hi, n, [(t, POSITION_GAP_MM) for t in paper_targets], POSITION_GAP_MM))
 
 

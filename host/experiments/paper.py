@@ -219,7 +219,7 @@ def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, he
     nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
     session.flash(nominal)
     zero = displacement.zero_at_stops(session, rig, opts.ref_scale, middle_mm=stroke.middle(opts.stroke))
-    targets = stroke.position_targets(results["stroke_measured_mm"])
+    targets = stroke.position_targets(results["stroke_measured_mm"], results["stroke_in_force_mm"])
     say("  reference zeroed at the block's end stops: %.3f and %.3f mm, shift %+.3f mm" % (zero["low"], zero["high"], zero["shift"]))
     before = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="before")
 

@@ -19,6 +19,9 @@ SWEEP_FRACTION = 0.9  # a pot's sweep must cover this much of the stroke (checks
 ANCHOR_FRACTION = 0.75  # the force gauge's default anchor, along the stroke (45 mm of 60)
 ENDS_MM = 1.0  # the displacement targets' first and last, this far inside the stroke
 TARGET_STEP_MM = 5.0  # and every 5 mm between (the paper's Fig. 7 targets on 0-60 mm)
+# and at least this far inside the soft limits in force: a target on a limit never settles (the
+# limit holds the block short of it); 0.5 mm is what the 0-60 mm stroke's 1 and 59 mm leave
+LIMIT_MARGIN_MM = 0.5
 
 
 def nominal(board, actuator=None):
@@ -51,13 +54,17 @@ def gauge_anchor_mm(stroke):
     return round(stroke[0] + ANCHOR_FRACTION * length(stroke), 1)
 
 
-def position_targets(stroke):
+def position_targets(stroke, limits=None):
     """The displacement targets: ENDS_MM inside each end (rounded inward to 0.1 mm) and every
     TARGET_STEP_MM between, on the stroke's own grid, none closer than 1.5 mm to an end target
-    (0-60 mm: 1, 5, 10, ..., 55, 59, the paper's)."""
+    (0-60 mm: 1, 5, 10, ..., 55, 59, the paper's). With `limits` (the firmware's soft limits in
+    force, mm) the end targets also stay LIMIT_MARGIN_MM inside those."""
     import math
 
     lo, hi = stroke
+    if limits is not None:
+        lo = max(lo, limits[0] + LIMIT_MARGIN_MM - ENDS_MM)
+        hi = min(hi, limits[1] - LIMIT_MARGIN_MM + ENDS_MM)
     first = math.ceil(round((lo + ENDS_MM) * 10, 6)) / 10
     last = math.floor(round((hi - ENDS_MM) * 10, 6)) / 10
     gap = 0.3 * TARGET_STEP_MM

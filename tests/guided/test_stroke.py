@@ -29,6 +29,15 @@ def test_another_stroke_scales_every_number(length):
     assert stroke.middle(s) == length / 2 and stroke.min_sweep_mm(s) == pytest.approx(0.9 * length)
 
 
+def test_the_end_targets_stay_inside_the_soft_limits_in_force():
+    """Measured end stops -0.72 and 59.15 mm, soft limits 0.5 and 58.2 mm (an eval actuator whose
+    end targets landed on the limits and never settled): the ends move 0.5 mm inside the limits;
+    limits wider than the stroke change nothing."""
+    targets = stroke.position_targets((-0.722, 59.148), (0.5, 58.2))
+    assert targets[0] == 1.0 and targets[-1] == 57.7 and 55.0 in targets
+    assert stroke.position_targets((0.0, 60.0), (0.5, 59.5)) == stroke.position_targets((0.0, 60.0))
+
+
 def test_the_board_file_stroke_comes_before_the_simulated_actuators_and_bad_ones_are_refused():
     assert stroke.nominal({"stroke_mm": [2, 47]}, {"block": {"stroke_mm": [0, 60]}}) == (2.0, 47.0)
     assert stroke.nominal({}, {"block": {"stroke_mm": [0, 45]}}) == (0.0, 45.0)
