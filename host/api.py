@@ -50,10 +50,31 @@ class Settled:
     last: dict = field(default_factory=dict)
     faults: list = field(default_factory=list)
     stroke_end: str = None  # not reached, and the block is at this stroke end ("0 mm", "60 mm")
+    cause: str = None  # not reached: why, as far as the board's last record tells (why_not_settled)
 
     def as_dict(self):
         return {"reached": self.reached, "value": self.value, "target": self.target, "seconds": self.seconds,
-                "faults": self.faults, "stroke_end": self.stroke_end, "last": self.last}
+                "faults": self.faults, "stroke_end": self.stroke_end, "cause": self.cause, "last": self.last}
+
+
+DUTY_LIMIT_FRACTION = 0.95  # a duty this close to out_limit is the loop asking for more than it may
+
+
+def why_not_settled(last, faults, stroke_end, out_limit):
+    """Why a motion did not settle, in words, from the board's newest record `last` (field ->
+    int), its latched `faults`, the stroke end the block sits at (None: not at one) and the
+    out_limit parameter in force: a fault, a stroke end, the duty at its limit against a load,
+    else the loop still short of the tolerance (friction, or a tolerance tighter than it holds)."""
+    if faults:
+        return "a fault stopped the motor: %s (host reset clears it)" % ", ".join(faults)
+    if stroke_end:
+        return "the block is at the soft stroke limit near %s (the target lies beyond what it may reach)" % stroke_end
+    duty = int(last.get("duty", 0)) if last else 0
+    if out_limit and abs(duty) >= DUTY_LIMIT_FRACTION * out_limit:
+        return ("the motor is at its duty limit (%d of out_limit %d) against %.2f N: the load holds it, or the "
+                "target asks more than the motor gives" % (duty, out_limit, int(last.get("force_mN", 0)) / 1000.0))
+    return ("the loop stayed outside the tolerance with no fault, limit or saturation (duty %d): friction holding "
+            "the block, or a tolerance tighter than the loop holds (host tune shows its response)" % duty)
 
 
 def _load(load):
@@ -152,7 +173,8 @@ class Board:
                 self.client.call("stop")
         faults = self.client.call("status").get("faults") or []
         end = self.stroke_end(last["d2_um"]) if last and not ok else None
-        return ok, value, seconds, last, faults, end
+        cause = None if ok else why_not_settled(last, faults, end, self.client.call("get", "out_limit"))
+        return ok, value, seconds, last, faults, end, cause
 
     def move(self, to_mm, tolerance_mm=0.2, timeout_s=15.0, hold=False, progress=None):
         """Closed-loop position move of the output block to `to_mm` (inside the soft stroke limits,
@@ -166,9 +188,9 @@ class Board:
                             "stroke_min_um/stroke_max_um parameters, kept stop_margin_um inside the calibrated end "
                             "stops; host status shows both)" % (to_mm, lo / 1000, hi / 1000))
         shown = (lambda um, s: progress(um / 1000, s)) if progress else None
-        ok, value, seconds, last, faults, end = self._settle("position", int(round(to_mm * 1000)), "d2_um",
-                                                             int(round(tolerance_mm * 1000)), timeout_s, hold, shown)
-        return Settled(ok, None if value is None else value / 1000, to_mm, seconds, last, faults, end)
+        ok, value, seconds, last, faults, end, cause = self._settle("position", int(round(to_mm * 1000)), "d2_um",
+                                                                    int(round(tolerance_mm * 1000)), timeout_s, hold, shown)
+        return Settled(ok, None if value is None else value / 1000, to_mm, seconds, last, faults, end, cause)
 
     def force(self, newtons, tolerance_n=0.1, timeout_s=15.0, hold=False, progress=None):
         """Closed-loop force (spring deformation) to `newtons` (negative pulls toward 0 mm), until
@@ -176,9 +198,9 @@ class Board:
         after unless `hold`. The block needs something to push against (a load)."""
         self._needs_calibration("force control")
         shown = (lambda mn, s: progress(mn / 1000, s)) if progress else None
-        ok, value, seconds, last, faults, end = self._settle("force", int(round(newtons * 1000)), "force_mN",
-                                                             int(round(tolerance_n * 1000)), timeout_s, hold, shown)
-        return Settled(ok, None if value is None else value / 1000, newtons, seconds, last, faults, end)
+        ok, value, seconds, last, faults, end, cause = self._settle("force", int(round(newtons * 1000)), "force_mN",
+                                                                    int(round(tolerance_n * 1000)), timeout_s, hold, shown)
+        return Settled(ok, None if value is None else value / 1000, newtons, seconds, last, faults, end, cause)
 
     def stroke_limits_um(self):
         """[low, high] um: the soft stroke limits on D2 in force (the parameters, kept off the

@@ -29,13 +29,10 @@ def run(args):
         "N (F0)")
     if outcome.value is None:
         raise UserError("no telemetry from the board during the force run")
-    if not outcome.reached and not args.json:
-        end = outcome.stroke_end
-        why = ("the block ran to D2 = %.1f mm, at the %s stroke end: nothing to push against? hook a load "
-               "(--port sim: --load gauge)" % (outcome.last["d2_um"] / 1000, end)) if end else \
-              "try a longer --timeout or a wider --tolerance"
-        raise UserError("force did not settle: %.3f N after %.1f s (target %.3f N); %s" % (
-            outcome.value, outcome.seconds, args.target, why))
-    report(args, outcome, summary, png, "reached at %.3f N (target %.3f N) after %.2f s" % (
-        outcome.value, args.target, outcome.seconds))
-    return 0 if outcome.reached else 1
+    if not outcome.reached and outcome.stroke_end and not outcome.faults:  # the usual mistake, in its own words
+        outcome.cause = ("the block ran to D2 = %.1f mm, at the %s stroke end: nothing to push against? hook a load "
+                         "(--port sim: --load gauge)" % (outcome.last["d2_um"] / 1000, outcome.stroke_end))
+    report(args, outcome, summary, png, "%s at %.3f N (target %.3f N) after %.2f s%s" % (
+        "reached" if outcome.reached else "NOT settled", outcome.value, args.target, outcome.seconds,
+        "" if outcome.reached else ": " + outcome.cause))
+    return 0 if outcome.reached else 1  # 1: measured, and missed (as host move)

@@ -67,5 +67,5 @@ def run(args):
         raise UserError("no telemetry from the board during the move")
     report(args, outcome, summary, png, "%s at %.3f mm (target %.3f mm) after %.2f s%s" % (
         "reached" if outcome.reached else "NOT settled", outcome.value, args.to, outcome.seconds,
-        "; faults: " + ", ".join(outcome.faults) if outcome.faults else ""))
+        "" if outcome.reached else ": " + outcome.cause))
     return 0 if outcome.reached else 1
