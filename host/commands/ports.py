@@ -38,7 +38,7 @@ def run(args):
         print("no serial ports (plug the board in; or use --port sim)")
         return 0
     for device, vid, pid, desc in ports:
-        ids = "%04x:%04x" % (vid, pid) if vid is not None else "-"
+        ids = "%04x:%04x" % (vid, pid) if isinstance(vid, int) and isinstance(pid, int) else "-"
         what = label(vid, pid) or "not a board we know"
         line = "%-20s %-10s %s (%s)" % (device, ids, what, desc)
         if args.probe and label(vid, pid):

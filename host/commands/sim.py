@@ -81,10 +81,16 @@ def run(args):
             path = board.start()
             what = "virtual board (flash in %s) with %s" % (board.root, "calibration %s" % calibration if calibration
                                                            else "no calibration")
-        print(path, flush=True)
-        print("%s running; Ctrl-C to stop" % what, flush=True)
-        while True:
-            time.sleep(0.5)
+        from host.link.running_sims import register, unregister
+
+        record = register(path, what)  # host ports and --port auto find it while it runs
+        try:
+            print(path, flush=True)
+            print("%s running; Ctrl-C to stop" % what, flush=True)
+            while True:
+                time.sleep(0.5)
+        finally:
+            unregister(record)
     except (KeyboardInterrupt, _Stopped):
         pass
     finally:

@@ -15,8 +15,13 @@ KNOWN = (
 )
 
 
+VIRTUAL = "sim"  # the "vendor id" list_ports gives a running virtual board (host sim)
+
+
 def label(vid, pid):
     """What a port with these USB ids probably is, or None."""
+    if vid == VIRTUAL:
+        return "lsea-kit virtual board (host sim)"
     if vid is None:
         return None
     for (v, p), text in KNOWN:
@@ -26,10 +31,14 @@ def label(vid, pid):
 
 
 def list_ports():
-    """[(device, vid, pid, description)] of the machine's serial ports (pyserial)."""
+    """[(device, vid, pid, description)] of the machine's serial ports (pyserial), then the
+    virtual boards `host sim` is running (vid VIRTUAL; host/link/running_sims.py)."""
     from serial.tools import list_ports as lp
 
-    return [(p.device, p.vid, p.pid, p.description or "") for p in sorted(lp.comports(), key=lambda p: p.device)]
+    from host.link.running_sims import running
+
+    usb = [(p.device, p.vid, p.pid, p.description or "") for p in sorted(lp.comports(), key=lambda p: p.device)]
+    return usb + [(path, VIRTUAL, None, what) for path, what in running()]
 
 
 def candidates(ports):
@@ -44,7 +53,8 @@ def choose(ports):
         return found[0][0]
     if not found:
         seen = ", ".join(p[0] for p in ports) or "none"
-        raise UserError("no board found (serial ports: %s): plug it in, or name it with --port (or --port sim)" % seen)
+        raise UserError("no board found (serial ports: %s): plug it in, or name it with --port; for a virtual board "
+                        "start `host sim` in another terminal, or use --port sim (one for this command only)" % seen)
     raise UserError("%d boards found (%s): name one with --port" % (len(found), ", ".join(p[0] for p in found)))
 
 

@@ -47,3 +47,29 @@ def test_port_auto_and_the_probe_find_a_board_running_our_firmware(monkeypatch, 
         assert cli.main(["ports", "--probe"]) == 0
         out = capsys.readouterr().out.splitlines()
         assert "lsea-kit" in out[0] and "on sim" in out[0], out
+
+
+def test_a_running_host_sim_is_listed_and_found_by_port_auto(tmp_path, monkeypatch, capsys):
+    """`host sim` in another terminal: `host ports` lists its pty as a virtual board and
+    `--port auto` talks to it (the error used to suggest --port sim, a second, empty board);
+    once it stops, it is gone from both."""
+    import json
+    import os
+    import subprocess
+
+    from testkit import processes
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))  # this test's own records, not another test's
+    proc = processes.start("sim", stdout=subprocess.PIPE, text=True, env=dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path)))
+    try:
+        path = proc.stdout.readline().strip()
+        proc.stdout.readline()
+        assert cli.main(["ports", "--json"]) == 0
+        rows = json.loads(capsys.readouterr().out)
+        assert [r["board"] for r in rows if r["device"] == path] == ["lsea-kit virtual board (host sim)"]
+        assert cli.main(["status", "--json"]) == 0  # --port auto
+        assert json.loads(capsys.readouterr().out)["board"] == "sim"
+    finally:
+        processes.stop(proc)
+    assert cli.main(["ports", "--json"]) == 0
+    assert path not in [r["device"] for r in json.loads(capsys.readouterr().out)]
