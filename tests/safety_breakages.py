@@ -39,7 +39,7 @@ BREAKS = [
   "        try:\n            _rmtree(live)\n            import time\n            time.sleep(1)\n            os.rename(new, live)\n        except OSError:",
   ["tests/link/test_flash.py::test_flash_killed_at_many_points_leaves_old_or_new_calibration"]),
  ("flash installs a calibration without checking it first", "host/link/flashing.py",
-  "    check_files(board_path, calibration)\n", "",
+  "    check_files(board_path, calibration, force)\n", "",
   ["tests/link/test_flash.py::test_flash_refuses_bad_files_and_another_board_before_touching_the_board"]),
  ("host calibrate writes an empty file before measuring", "host/guided/flow.py",
   "    for step in steps:\n        if log:",

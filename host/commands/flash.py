@@ -19,6 +19,8 @@ def add_parser(subparsers):
     p.add_argument("--replace-board", action="store_true",
                    help="install --board although the firmware on the board reports another board")
     p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
+    p.add_argument("--force", action="store_true", help="install a calibration although its readable fields (board, ADC "
+                   "width, table knots) contradict its tables or name no board (the board still checks the tables)")
     add_load_argument(p)
     p.set_defaults(func=run)
 
@@ -29,9 +31,11 @@ def run(args):
 
     with open_port(args.port, args.board, load=args.load, factory=False, uf2=args.uf2) as where:
         if where.virtual is not None:  # an empty flash: nothing to ask, the board file is the virtual board's
-            status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False)
+            status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False,
+                           force=args.force)
         else:
-            status = flash(where.path, args.board, args.calibration, progress=progress, replace_board=args.replace_board)
+            status = flash(where.path, args.board, args.calibration, progress=progress, replace_board=args.replace_board,
+                           force=args.force)
     if status.get("version") is None:
         raise UserError("firmware did not report a version")
     print("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],

@@ -242,11 +242,13 @@ def file_crc(path):
     return binascii.crc32(Path(path).read_bytes())
 
 
-def check_files(board_path, calibration=None):
+def check_files(board_path, calibration=None, force=False):
     """The firmware's own checks on every file flash would install, before the board is touched:
     the board file (firmware.board_config), the calibration (firmware.calibration: size, CRC,
     every section's layout), that it was made for this board and ADC width, and what the boot
-    checks of its curves (firmware.measurement: each pot's position grows with the code)."""
+    checks of its curves (firmware.measurement: each pot's position grows with the code). Then,
+    unless `force`, that its readable fields agree with its tables and name a board
+    (host/calibration/consistency.py)."""
     from firmware.board_config import BoardError, load_board
     from firmware.calibration import CalibrationError, load_calibration
     from firmware.measurement import Measurement, board_problem
@@ -273,6 +275,14 @@ def check_files(board_path, calibration=None):
             why = str(exc)
     if why is not None:
         raise UserError("calibration %s refused (the board keeps its own): %s" % (calibration, why))
+    if not force:
+        from host.calibration.consistency import contradictions
+        from host.calibration.file import read_calibration
+
+        said = contradictions(read_calibration(calibration), board)
+        if said:
+            raise UserError("calibration %s refused (the board keeps its own): %s; host flash --force installs it "
+                            "as it is" % (calibration, "; ".join(said)))
     return board
 
 
@@ -287,11 +297,12 @@ def identify(port):
             return None
 
 
-def flash(port, board_name="sim", calibration=None, progress=print, replace_board=False, ask_board=True):
+def flash(port, board_name="sim", calibration=None, progress=print, replace_board=False, ask_board=True, force=False):
     """Install firmware, board file and (optionally) calibration on the board at `port`.
 
     Every file is checked first (check_files) and, unless `replace_board`, the board's own
-    firmware is asked what it is: nothing is copied when anything is wrong."""
+    firmware is asked what it is: nothing is copied when anything is wrong. `force`: install a
+    calibration whose readable fields contradict its tables or name no board."""
     if "/" in port and not Path(port).exists():
         raise UserError("serial port %s not found (is the board plugged in? try `host sim`)" % port)
     running = identify(port) if ask_board else None
@@ -301,7 +312,7 @@ def flash(port, board_name="sim", calibration=None, progress=print, replace_boar
             raise UserError("no lsea-kit firmware on %s says which board it is: name it with --board (%s)" % (port, known))
         board_name = running
     board_path, board = resolve_board(board_name)
-    check_files(board_path, calibration)
+    check_files(board_path, calibration, force)
     if running is not None and running != board["name"] and not replace_board:
         raise UserError("the board on %s runs lsea-kit for board %s, not %s: flash --board %s, or --replace-board to install %s"
                         % (port, running, board["name"], running, board["name"]))

@@ -16,7 +16,7 @@ from host import cli
 from host.link.board_client import BoardClient
 from host.calibration.file import encode_document, read_calibration
 from host.link.flashing import flash
-from host.link.virtual_board import VirtualBoard
+from host.link.virtual_board import READY_CALIBRATION, VirtualBoard
 
 from testkit.model import write_model_calibration
 
@@ -266,6 +266,16 @@ def _bad_calibrations(d, good):
     # both tables exported for a 10-bit ADC (input shift 6) onto the sim board's 12 bits
     out["another ADC width"] = encode_document(dict(body, **{p: dict(body[p], fixed=[body[p]["fixed"][0], 6] + body[p]["fixed"][2:])
                                                              for p in ("pot1", "pot2")}))
+    # readable fields that contradict the tables the board would run (host/calibration/consistency.py)
+    out["no board"] = encode_document(dict(body, board=None))
+    out["pots naming a missing section"] = encode_document(dict(body, pots={"pot1": "a", "pot3": "c"}))
+    out["readable ADC width"] = encode_document(dict(body, pot1=dict(body["pot1"], adc_bits=10)))
+    worded = read_calibration(READY_CALIBRATION)  # a guided calibration: its pots carry their knots in mm
+    knots = dict(worded["pot1"]["coefficients"])
+    for name, change in (("knots reversed", lambda k: dict(k, knots_y=k["knots_y"][::-1])),
+                         ("knots 1e300", lambda k: dict(k, knots_y=[1e300] * len(k["knots_y"]))),
+                         ("3 knots", lambda k: dict(k, knots_x=k["knots_x"][:3], knots_y=k["knots_y"][:3]))):
+        out[name] = encode_document(dict(worded, pot1=dict(worded["pot1"], coefficients=change(knots))))
     paths = {}
     for name, content in out.items():
         p = d / (name.replace(" ", "_") + ".json")
@@ -293,6 +303,9 @@ def test_flash_refuses_bad_files_and_another_board_before_touching_the_board(cal
         assert code == 2 and "runs lsea-kit for board sim, not pico" in err[-1], err
         with BoardClient(board.path) as client:
             assert client.status_info["calibration_crc"] == crc
+        # the user says otherwise: --force installs one whose only fault is its words
+        assert cli.main(["flash", "--port", board.path, "--calibration", str(tmp_path / "no_board.json"), "--force"]) == 0
+        capsys.readouterr()
 
 
 def test_flash_refuses_a_board_file_the_firmware_would_refuse_at_boot(calibrations, tmp_path, capsys):

@@ -1,0 +1,71 @@
+"""What a calibration file says in words against what its fixed-point tables make the board do.
+
+The board reads only the "fixed" words of each section (checked by firmware/calibration.py). A
+person and the host read the rest: the board it was made for, each pot's ADC width, the knots of
+a table in millimetres. A file whose readable fields contradict its tables (edited by hand, made
+by another tool, a section pasted from another file) would install and run, and then mislead
+whoever reads it; `host flash` refuses one unless told to install it anyway.
+"""
+
+import math
+
+from firmware.calibration import pot_constants
+from host.calibration.report import pot_positions_um
+
+# A table's fixed-point error is a few um (fixed_check.max_error), its end knots up to ~50 um off
+# the float fit's after the export's monotone and range clamps; 0.2 mm is a contradiction
+KNOT_TOLERANCE_UM = 200
+EXTRA_KNOTS = 3  # the export pads a table with end knots (a 2-point line becomes a 5-knot table)
+
+
+def contradictions(doc, board):
+    """Lines saying where calibration `doc` (its payload dict) contradicts itself or `board` (the
+    board file's dict); [] when its words and its tables agree."""
+    out = []
+    if not doc.get("board"):
+        out.append("it names no board (board is %r): it would install on any board" % (doc.get("board"),))
+    for name in (doc.get("pots") or {}):
+        if name not in doc:
+            out.append("pots names %s, which the file has no section for" % name)
+    for name in ("pot1", "pot2"):
+        section = doc.get(name)
+        if not isinstance(section, dict):
+            continue
+        bits = section.get("adc_bits")
+        if bits is not None and bits != board.get("adc_bits"):
+            out.append("%s says adc_bits %r, the board's ADC has %r" % (name, bits, board.get("adc_bits")))
+            continue
+        out += _knots(section, name)
+    return out
+
+
+def _knots(section, name):
+    """A table pot's knots (coefficients.knots_x codes, knots_y mm) against what its fixed words give."""
+    coefficients = section.get("coefficients")
+    if section.get("kind") != "pwl" or not isinstance(coefficients, dict):
+        return []
+    xs, ys = coefficients.get("knots_x"), coefficients.get("knots_y")
+    if not isinstance(xs, list) or not isinstance(ys, list):
+        return []
+    if len(xs) != len(ys):
+        return ["%s lists %d knot codes and %d knot positions" % (name, len(xs), len(ys))]
+    try:
+        pairs = [(float(x), float(y)) for x, y in zip(xs, ys)]
+    except (TypeError, ValueError):
+        return ["%s's knots are not numbers" % name]
+    if not all(math.isfinite(x) and math.isfinite(y) for x, y in pairs):
+        return ["%s's knots are not finite numbers" % name]
+    table_knots = pot_constants(section, name)[1][0]
+    if abs(len(pairs) - table_knots) > EXTRA_KNOTS:  # padded with end knots, never most of them dropped
+        return ["%s lists %d knots for a table of %d" % (name, len(pairs), table_knots)]
+    board_um = pot_positions_um(section, name)
+    worst, where = 0.0, None
+    for x, y in pairs:
+        code = min(max(int(round(x)), 0), len(board_um) - 1)
+        miss = abs(board_um[code] - y * 1000.0)
+        if miss > worst:
+            worst, where = miss, (x, y)
+    if worst > KNOT_TOLERANCE_UM:
+        return ["%s's knots say %.6g mm at code %.0f, its table gives %.3f mm"
+                % (name, where[1], where[0], board_um[min(max(int(round(where[0])), 0), len(board_um) - 1)] / 1000.0)]
+    return []
