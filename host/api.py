@@ -53,7 +53,9 @@ class Settled:
     cause: str = None  # not reached: why, as far as the board's last record tells (why_not_settled)
 
     def as_dict(self):
-        return {"reached": self.reached, "value": self.value, "target": self.target, "seconds": self.seconds,
+        """For JSON: value and seconds rounded to what they resolve (0.1 um or 0.1 mN; 1 ms)."""
+        return {"reached": self.reached, "value": None if self.value is None else round(self.value, 4),
+                "target": self.target, "seconds": round(self.seconds, 3),
                 "faults": self.faults, "stroke_end": self.stroke_end, "cause": self.cause, "last": self.last}
 
 

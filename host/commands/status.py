@@ -79,6 +79,9 @@ def run(args):
                uncalibrated=args.uncalibrated) as board:
         status = board.status()
     if args.json:
+        crc = status.get("calibration_crc")
+        if crc is not None:  # hex, as host flash, host show and the log's metadata write it
+            status = dict(status, calibration_crc="%08x" % (crc & 0xFFFFFFFF))
         print(json.dumps(status, indent=1, sort_keys=True))
     else:
         print("\n".join(describe(status)))

@@ -57,7 +57,7 @@ def test_host_status_on_the_flashed_pico(pico, calibration):
     assert status["timer"] == "hard"  # rp2's Timer(hard=True): the step runs in the alarm interrupt
     assert status["period_us"] == 1000
     assert status["overruns"] == 0 and status["faults"] == []
-    assert status["calibration_crc"] == calibration[1] and status["calibration_error"] is None
+    assert status["calibration_crc"] == "%08x" % calibration[1] and status["calibration_error"] is None
 
 
 def test_a_move_and_a_force_hold_against_the_plant(pico):
