@@ -76,6 +76,7 @@ def instrumented():
     import host.calibration.fixed_export  # noqa: F401  (host code keeps the plain firmware modules it imports)
 
     saved = {k: v for k, v in sys.modules.items() if k == "firmware" or k.startswith("firmware.")}
+    before = set(sys.modules)
     for k in saved:
         del sys.modules[k]
     finder = _Finder()
@@ -88,7 +89,9 @@ def instrumented():
     finally:
         sys.meta_path.remove(finder)
         del builtins._chk_
-        for k in [k for k in sys.modules if k == "firmware" or k.startswith("firmware.")]:
+        # every module first imported while instrumented (firmware's, and any that bound its
+        # names, e.g. boards.sim.machine) goes, so that later tests import plain ones again
+        for k in [k for k in sys.modules if k == "firmware" or k.startswith("firmware.") or k not in before]:
             del sys.modules[k]
         sys.modules.update(saved)
         PEAK["on"] = False
