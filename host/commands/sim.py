@@ -83,7 +83,8 @@ def run(args):
                                                            else "no calibration")
         from host.link.running_sims import register, unregister
 
-        record = register(path, what)  # host ports and --port auto find it while it runs
+        # host ports and --port auto find it while it runs; a guided calibration on its pty mounts its rig
+        record = register(path, what, root=getattr(board, "root", None), board=getattr(board, "board_path", None))
         try:
             print(path, flush=True)
             print("%s running; Ctrl-C to stop" % what, flush=True)

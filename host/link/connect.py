@@ -62,9 +62,12 @@ class BoardPort:
     def open(self):
         chip = virtual_kind(self.port)
         if chip is None:
-            if self.load is not None:
-                raise UserError("a load can be hooked only on a virtual board (port sim); on a bench, hook it by hand")
             self.path = self.port
+            self.virtual = _attached(self.path)
+            if self.load is not None:
+                if self.virtual is None:
+                    raise UserError("a load can be hooked only on a virtual board (port sim); on a bench, hook it by hand")
+                self.virtual.set_load(self.load)
             return self
         if chip == "rp2040":
             return self._open_pico()
@@ -121,6 +124,19 @@ def _note(text):
     from host.terminal import note
 
     note(text)
+
+
+def _attached(path):
+    """The virtual board `host sim` runs on serial path `path` (unix port), for its rig and gauge:
+    not started here and not stopped by close(); None for any other port."""
+    from host.link.running_sims import record_for
+
+    record = record_for(path)
+    if not record or not record.get("root") or not record.get("board"):
+        return None
+    from host.link.virtual_board import VirtualBoard
+
+    return VirtualBoard(board=record["board"], root=record["root"])
 
 
 def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False):

@@ -27,14 +27,16 @@ def _alive(pid):
     return True
 
 
-def register(path, what):
-    """Record a running virtual board on serial path `path`; returns the record's file (remove it
-    with unregister when the board stops)."""
+def register(path, what, root=None, board=None):
+    """Record a running virtual board on serial path `path` (`root`: its flash folder, where its
+    rig is mounted; `board`: its board file); returns the record's file (remove it with
+    unregister when the board stops)."""
     folder = run_dir()
     folder.mkdir(mode=0o700, parents=True, exist_ok=True)
     record = folder / ("%d.json" % os.getpid())
     tmp = record.with_suffix(".tmp")
-    tmp.write_text(json.dumps({"path": str(path), "what": what, "pid": os.getpid()}))
+    tmp.write_text(json.dumps({"path": str(path), "what": what, "pid": os.getpid(),
+                               "root": None if root is None else str(root), "board": None if board is None else str(board)}))
     os.replace(tmp, record)
     return record
 
@@ -46,8 +48,21 @@ def unregister(record):
         pass
 
 
+def record_for(path):
+    """The record (dict: path, what, pid, root, board) of the virtual board running on serial
+    path `path`, or None."""
+    for record in _records():
+        if os.path.realpath(record["path"]) == os.path.realpath(str(path)):
+            return record
+    return None
+
+
 def running():
     """[(serial path, what)] of the virtual boards running now (stale records removed)."""
+    return [(r["path"], str(r.get("what", "virtual board"))) for r in _records()]
+
+
+def _records():
     out = []
     folder = run_dir()
     for record in sorted(folder.glob("*.json")) if folder.is_dir() else []:
@@ -59,5 +74,5 @@ def running():
         if not _alive(pid) or not os.path.exists(path):
             unregister(record)
             continue
-        out.append((path, str(data.get("what", "virtual board"))))
+        out.append(data)
     return out

@@ -73,3 +73,35 @@ def test_a_running_host_sim_is_listed_and_found_by_port_auto(tmp_path, monkeypat
         processes.stop(proc)
     assert cli.main(["ports", "--json"]) == 0
     assert path not in [r["device"] for r in json.loads(capsys.readouterr().out)]
+
+
+def test_a_guided_session_on_a_host_sims_pty_mounts_its_rig(tmp_path, monkeypatch):
+    """`host calibrate --port <host sim's pty>` drives the virtual rig as `--port sim` does (it
+    stopped at the force step, asking for a person): the session finds the running board's
+    flash, the rig's instructions reach it, its gauge is read, and closing leaves it running."""
+    import json
+    import os
+    import subprocess
+    from pathlib import Path
+
+    from host.guided.prompts import Prompter
+    from host.guided.rig import Rig
+    from host.guided.session import Session
+    from testkit import processes
+
+    monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
+    proc = processes.start("sim", stdout=subprocess.PIPE, text=True, env=dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path)))
+    try:
+        path = proc.stdout.readline().strip()
+        root = Path(proc.stdout.readline().split("(flash in ")[1].split(")")[0])
+        with Session(path, say=lambda *_: None) as session:
+            assert session.virtual is not None and session.simulated and session.root == root
+            rig = Rig(Prompter(yes=True, out=lambda *_: None), session.virtual)
+            rig.mount_reference("pot2")
+            assert json.loads((root / "rig.json").read_text())["reference"] == "pot2"
+            rig.hook_gauge(25.0, "high")
+            assert isinstance(rig.gauge_reading_n(beat=session.client.heartbeat_if_due), float)
+            rig.no_load()
+        assert proc.poll() is None and root.is_dir()  # still running, its flash untouched
+    finally:
+        processes.stop(proc)
