@@ -161,7 +161,29 @@ def force_points(session, rig, prompter, opts, side="high"):
     # Loading against the high-side gauge makes the force fall (more negative): the block slides
     # toward 0 mm, s = +1; on the low side loading makes it rise, s = -1.
     s = np.where(loading, 1.0, -1.0) * -SIDES[side]
-    return np.array(d), gauge.forces(), s, loading, gauge.tares, np.array(duties, dtype=float)
+    forces = gauge.forces()
+    check_gauge_follows(np.array(d), forces, side)
+    return np.array(d), forces, s, loading, gauge.tares, np.array(duties, dtype=float)
+
+
+MIN_CORRELATION = 0.9  # the gauge's force against the spring's deformation over a side's points
+MIN_SPAN_N = 0.5  # and it must move at least this much while the spring deforms MIN_SPAN_MM
+MIN_SPAN_MM = 0.1
+
+
+def check_gauge_follows(d, forces, side):
+    """UserError unless the gauge's readings on `side` move with the spring's deformation: a
+    gauge not hooked, or read from an input it is not wired to (--gauge adc on a board without
+    it), gives readings that stay flat or wander, and F0 fitted to them would be nonsense. The
+    force and the deformation rise and fall together on a spring, friction or not."""
+    d, forces = np.asarray(d, dtype=float), np.asarray(forces, dtype=float)
+    if len(d) < 3 or np.ptp(d) < MIN_SPAN_MM:
+        return  # too little motion to judge (the step's own checks say so)
+    r = float(np.corrcoef(d, forces)[0, 1]) if np.ptp(forces) > 0 else 0.0
+    if np.ptp(forces) < MIN_SPAN_N or not r >= MIN_CORRELATION:
+        raise UserError("gauge on the %s side: its readings do not follow the spring (deformation %.3f..%.3f mm, gauge "
+                        "%.2f..%.2f N, correlation %.2f): is the gauge hooked to the block, and read from where it is "
+                        "wired (--gauge display or adc)?" % (side, d.min(), d.max(), forces.min(), forces.max(), r))
 
 
 MIN_STEP_DUTY = 100

@@ -43,3 +43,20 @@ def test_a_spring_that_only_softens_at_release_or_hardens_keeps_its_whole_range(
     d, f, loading, duty = _levels(k1, k2, preload, 2.6, forces, slack_first=True)
     reached, usable, contact = usable_range(d, f, loading, duty, "high")
     assert contact is None and usable == reached == pytest.approx(17.0)
+
+
+def test_a_gauge_that_does_not_follow_the_spring_stops_the_force_step():
+    """--gauge adc on a board with no gauge hooked read 23.6 N, then a flat 33.5 N, and F0 was
+    fitted to it without a word. A spring's force moves with its deformation, friction or not."""
+    import numpy as np
+    import pytest
+
+    from host.errors import UserError
+    from host.guided.force_calibration import check_gauge_follows
+
+    d = np.array([-0.1, -0.3, -0.5, -0.7, -0.9, -0.7, -0.5, -0.3])
+    spring = 12.4 * d + np.array([0.3, 0.3, 0.3, 0.3, 0.3, -0.3, -0.3, -0.3])  # with 0.3 N of friction
+    check_gauge_follows(d, spring, "high")  # a real gauge: goes on
+    for readings in (np.full(8, 33.5), np.array([23.6] + [33.5] * 7), np.random.default_rng(1).normal(0, 3, 8)):
+        with pytest.raises(UserError, match="do not follow the spring"):
+            check_gauge_follows(d, readings, "high")
