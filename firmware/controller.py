@@ -57,7 +57,7 @@ _B29 = const(536870912)
 _M30 = const(1073741823)
 
 # What the step uses of the other modules, as compile-time constants: an imported name is a
-# run-time global, which viper code cannot use as a machine int. tests/test_firmware_step.py
+# run-time global, which viper code cannot use as a machine int. tests/firmware/test_copied_constants.py
 # checks every one against the module it copies.
 _DUTY_MAX = const(10000)  # pi_control.DUTY_MAX
 _S_RAW1 = const(0)  # sampler.RAW1 ...

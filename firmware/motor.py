@@ -28,7 +28,7 @@ U16 = const(3)  # duty_u16 last written to the driven channel; 65536 = none yet 
 DUTY = const(4)  # the signed duty last set
 HAS_DIR_N = const(5)  # 1 when a "dir_n" pin is driven as DIR's complement
 WORDS = const(6)
-_DUTY_MAX = const(10000)  # pi_control.DUTY_MAX as a compile-time constant for viper (tested equal)
+_DUTY_MAX = const(10000)  # pi_control.DUTY_MAX as a compile-time constant for viper (tests/firmware/test_copied_constants.py)
 
 
 class Motor:
