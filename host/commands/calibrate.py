@@ -34,9 +34,9 @@ def add_parser(subparsers):
     p.add_argument("--manual-points", type=ranged(int, 3, 200), default=12, help="--reference manual: stops per direction (default 12)")
     add_method_arguments(p)
     add_gauge_arguments(p)
-    p.add_argument("--duty", type=ranged(int, 100, 10000), default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
+    p.add_argument("--duty", type=ranged(int, 100, 6000), default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
     p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
-    p.add_argument("--levels", type=ranged(int, 2, 50), default=8, help="force: loading steps of 5000/N duty each (default 8: 625), "
+    p.add_argument("--levels", type=ranged(int, 3, 50), default=8, help="force: loading steps of 5000/N duty each (default 8: 625), "
                    "taken until the gauge reads --force-range")
     p.add_argument("--force-range", type=ranged(float, 1, 25), default=16.0, metavar="N",
                    help="force: load until the gauge reads this many newtons (default 16: the paper's forces reach 15 N)")
@@ -122,12 +122,10 @@ def method_options(args):
 def options_from(args):
     out = Path(args.out)
     plots = Path(args.plots) if args.plots else (out.parent if str(out.parent) else Path("."))
-    if not 100 <= args.duty <= 6000:
-        raise UserError("--duty must be within 100..6000")
     plots.mkdir(parents=True, exist_ok=True)
     return Options(out=out, out_dir=plots, reference=args.reference, manual_points=args.manual_points,
-                   duty=args.duty, anchor_mm=args.anchor_mm, rounds=max(1, args.rounds),
-                   levels=max(3, args.levels), max_duty=args.max_duty, force_range=args.force_range, flash=not args.no_flash, fix=args.fix,
+                   duty=args.duty, anchor_mm=args.anchor_mm, rounds=args.rounds,
+                   levels=args.levels, max_duty=args.max_duty, force_range=args.force_range, flash=not args.no_flash, fix=args.fix,
                    **method_options(args))
 
 
