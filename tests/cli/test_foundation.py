@@ -47,3 +47,16 @@ def test_missing_shared_data_skips_with_the_reason_but_fails_under_ci(tmp_path, 
         shared_dir(missing, "the curves")
     missing.mkdir(parents=True)
     assert shared_dir(missing, "the curves") == missing  # present: no skip, CI or not
+
+
+def test_the_readme_command_table_names_every_command():
+    """The README's table is written by hand; a command missing from it (host show was) fails here."""
+    from pathlib import Path
+
+    from host.cli import build_parser
+
+    readme = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    table = readme.split("## Commands", 1)[1].split("\n\n", 1)[0]
+    sub = next(a for a in build_parser()._actions if a.dest == "command")
+    missing = [name for name in sub.choices if "`host %s" % name not in table]
+    assert not missing, "commands missing from README's table: %s" % missing
