@@ -119,7 +119,7 @@ def test_cli_bad_input_is_one_line(tmp_path, args, message):
 
 def test_cli_missing_file_is_one_line(tmp_path):
     proc = _cli(tmp_path / "nope.csv", "--out", tmp_path / "o")
-    assert proc.returncode == 2 and "not found" in proc.stderr
+    assert proc.returncode == 2 and "no sweep file at" in proc.stderr
 
 
 def test_pwl_objective_never_rises_with_the_order_in_a_comparison(realdata_dir):

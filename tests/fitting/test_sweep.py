@@ -129,7 +129,7 @@ def test_bad_input_is_a_one_line_user_error(tmp_path, text, fragment):
 
 
 def test_missing_file_and_gap(tmp_path):
-    with pytest.raises(UserError, match="not found"):
+    with pytest.raises(UserError, match="no sweep file at"):
         load_sweep(tmp_path / "nope.csv")
     raw = np.concatenate([np.linspace(0, 1000, 20), np.linspace(3000, 4000, 20)])
     with pytest.raises(UserError, match="no readings between"):
