@@ -182,6 +182,7 @@ class BoardClient:
         timeout = self.timeout if timeout is None else timeout
         retries = self.retries if retries is None else retries
         start, heard = time.monotonic(), self.received
+        skipped, bad_crc = self.decoder.skipped_bytes, self.decoder.crc_errors
         tries = 0
         while retries is not None and tries <= retries or retries is None and (
                 tries == 0 or time.monotonic() - start < self.patience):
@@ -200,8 +201,15 @@ class BoardClient:
         if self.received == heard:
             raise TimeoutError("the board stopped answering: no reply to %s from %s in %.0f s, and nothing else came "
                                "from it" % (name, self.port, waited))
+        came = self.received - heard
+        junk = self.decoder.skipped_bytes - skipped
+        if junk * 2 > came:  # mostly not our frames: a slow board still sends frames
+            raise TimeoutError("no reply to %s from %s in %.0f s; what came (%d bytes) was mostly not lsea-kit frames "
+                               "(%d bytes skipped, %d frames with a bad CRC): another program on the port, a wrong "
+                               "port, or a bad cable?" % (name, self.port, waited, came, junk,
+                                                          self.decoder.crc_errors - bad_crc))
         raise TimeoutError("no reply to %s from %s in %.0f s, though it kept sending (%d bytes): the board or this "
-                           "computer is overloaded" % (name, self.port, waited, self.received - heard))
+                           "computer is overloaded" % (name, self.port, waited, came))
 
     def call(self, name, *args, **kw):
         """request() with a UserError instead of TimeoutError (for CLI commands)."""

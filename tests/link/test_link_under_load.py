@@ -96,3 +96,31 @@ def test_a_board_frozen_for_good_is_said_to_have_stopped_answering(calibration_f
         finally:
             os.kill(pid, signal.SIGCONT)
             client.close()
+
+
+def test_random_bytes_on_the_port_are_not_blamed_on_a_busy_computer():
+    """Something else writing to the port (random bytes, no frame of ours): the request gives up
+    saying what came was not our frames, not that the board or the computer is overloaded."""
+    import random
+
+    master, slave = os.openpty()
+    stop = threading.Event()
+
+    def noise():
+        rng = random.Random(1)
+        while not stop.is_set():
+            os.write(master, bytes(rng.randrange(256) for _ in range(64)))
+            time.sleep(0.005)
+
+    writer = threading.Thread(target=noise, daemon=True)
+    writer.start()
+    client = BoardClient(os.ttyname(slave), check=False, patience=1.0)
+    try:
+        with pytest.raises(TimeoutError, match="mostly not lsea-kit frames .*another program on the port"):
+            client.request("status")
+    finally:
+        stop.set()
+        writer.join(1)
+        client.close()
+        os.close(master)
+        os.close(slave)
