@@ -130,15 +130,21 @@ RANGES_V1 = {k: RANGES[k] for k in ("knee_low_u", "knee_high_u", "knee_halfwidth
                                     "preload_n", "resistance_ohm", "k_motor", "gauge_drift_n_per_min")}
 
 
+def _draw_knees(pot, u):
+    """A pot's knees, their sharpness and its noise, drawn with `u(name)` (the same calls, in the
+    same order, in both draw versions: a seed keeps its actuator)."""
+    g0, g3 = pot["curve"][0][1], pot["curve"][3][1]
+    pot["curve"] = [[0.0, g0], [u("knee_low_u"), u("g_knee_low")], [u("knee_high_u"), u("g_knee_high")], [1.0, g3]]
+    pot["knee_halfwidth"] = min(u("knee_halfwidth"), 0.9 * pot["curve"][1][0], 0.9 * (1 - pot["curve"][2][0]))
+    pot["noise_lsb"] = u("noise_lsb")
+
+
 def _draw_once_v1(base, rng):
     u = lambda name: float(rng.uniform(*RANGES_V1[name]))  # noqa: E731
     a = copy.deepcopy(base)
     for name in ("pot1", "pot2"):
         pot = a["pots"][name]
-        g0, g3 = pot["curve"][0][1], pot["curve"][3][1]
-        pot["curve"] = [[0.0, g0], [u("knee_low_u"), u("g_knee_low")], [u("knee_high_u"), u("g_knee_high")], [1.0, g3]]
-        pot["knee_halfwidth"] = min(u("knee_halfwidth"), 0.9 * pot["curve"][1][0], 0.9 * (1 - pot["curve"][2][0]))
-        pot["noise_lsb"] = u("noise_lsb")
+        _draw_knees(pot, u)
         # the mounting error keeps the shape of sim.json's pot 1 (bowed and tilted), scaled to its
         # own peak and sign for each pot, so both pots carry some of Df
         shape = base["pots"]["pot1"]["mount_error"]["coeffs_mm"]
@@ -157,17 +163,13 @@ def _draw_once_v1(base, rng):
     return a
 
 
-
 def _draw_once(base, rng):
     u = lambda name: float(rng.uniform(*RANGES[name]))  # noqa: E731
     pick = lambda name: CHOICES[name][int(rng.integers(len(CHOICES[name])))]  # noqa: E731
     a = copy.deepcopy(base)
     for name in ("pot1", "pot2"):
         pot = a["pots"][name]
-        g0, g3 = pot["curve"][0][1], pot["curve"][3][1]
-        pot["curve"] = [[0.0, g0], [u("knee_low_u"), u("g_knee_low")], [u("knee_high_u"), u("g_knee_high")], [1.0, g3]]
-        pot["knee_halfwidth"] = min(u("knee_halfwidth"), 0.9 * pot["curve"][1][0], 0.9 * (1 - pot["curve"][2][0]))
-        pot["noise_lsb"] = u("noise_lsb")
+        _draw_knees(pot, u)
         pot["mount_error"]["coeffs_mm"] = _mount_shape(rng, u("mount_peak_mm"))
         pot["wiper_lift_rail"] = pick("wiper_lift_rail")
     a["reference"]["noise_lsb"] = u("reference_noise_lsb")
