@@ -52,7 +52,7 @@ def run(seconds, canvas, tmp):
                 k += 1
             return k, time.monotonic() - start
 
-        (moves, wall), summary, view = logged(board, out, 1000, work, canvas=canvas)  # wall: while streaming
+        (moves, wall), summary, view, _ = logged(board, out, 1000, work, canvas=canvas)  # wall: while streaming
     data = load(out)
     gaps = int(sum(1 for d in (data["t_us"][1:] - data["t_us"][:-1]) if d != 1000))
     return moves, wall, summary, view, len(data["t_us"]), gaps

@@ -70,7 +70,8 @@ def add_port_arguments(parser):
 
 
 def live_arguments(parser, with_log=True):
-    """--live (and for a motion command --log FILE and --rate) on a command's parser."""
+    """--live and --keep (and for a motion command --log FILE and --rate) on a command's parser;
+    check_live(args) refuses the combinations that cannot work."""
     if with_log:
         parser.add_argument("--log", default=None, metavar="FILE.csv",
                             help="record the board's telemetry to this CSV while the command runs (same connection; "
@@ -80,3 +81,17 @@ def live_arguments(parser, with_log=True):
     parser.add_argument("--live", action="store_true",
                         help="plot positions, deformation, force, duty and target in a window as they come (10 times a "
                         "second); without a display, a PNG of the run beside the CSV at the end")
+    parser.add_argument("--keep", action="store_true",
+                        help="with --live: leave the window open after the command ends, until you close it (the "
+                        "board is let go and its motor stopped first)")
+
+
+def check_live(args):
+    """A one-line error (host.errors.UserError) for --live or --keep without what they need,
+    before any board is opened."""
+    from host.errors import UserError
+
+    if args.live and getattr(args, "log", "") is None:  # a motion command's --log; `host log` always has --out
+        raise UserError("--live needs --log FILE.csv (the run is recorded while it is shown)")
+    if args.keep and not args.live:
+        raise UserError("--keep needs --live (it keeps the live window open after the run)")

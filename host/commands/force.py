@@ -24,7 +24,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    outcome, summary, png = run_motion(
+    outcome, summary, png, kept = run_motion(
         args, lambda board, progress: board.force(args.target, args.tolerance, args.timeout, args.hold, progress),
         "N (F0)")
     if outcome.value is None:
@@ -35,4 +35,6 @@ def run(args):
     report(args, outcome, summary, png, "%s at %.3f N (target %.3f N) after %.2f s%s" % (
         "reached" if outcome.reached else "NOT settled", outcome.value, args.target, outcome.seconds,
         "" if outcome.reached else ": " + outcome.cause))
+    if kept:  # --keep: the outcome is printed, the board let go; the window is the person's to close
+        kept.wait()
     return 0 if outcome.reached else 1  # 1: measured, and missed (as host move)

@@ -4,7 +4,7 @@ it with a complete file."""
 import sys
 
 from host.api import Board
-from host.commands._options import add_port_arguments, live_arguments, ranged
+from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
 from host.link.live_view import watched
 from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path
 from host.terminal import end_progress, progress_line
@@ -16,7 +16,8 @@ def add_parser(subparsers):
                               "field, with progress (samples, rate, lost frames). Ctrl-C ends it with a complete file. "
                               "A board without calibration sends 0 for positions, deformation and force (it warns "
                               "once); the raw ADC codes are always logged. --live shows the run in a window as it "
-                              "comes (closing it ends the log); without a display, a PNG of the run at the end.")
+                              "comes (closing it ends the log; --keep leaves it open after the log ends); without "
+                              "a display, a PNG of the run at the end.")
     add_port_arguments(p)
     p.add_argument("--out", required=True, help="CSV file to write (columns: firmware.telemetry.FIELDS)")
     p.add_argument("--seconds", type=ranged(float, 0.001, 86400), default=None, help="stop after this long (default: until Ctrl-C)")
@@ -26,6 +27,8 @@ def add_parser(subparsers):
 
 
 def run(args):
+    check_live(args)
+
     def progress(s):
         progress_line("%8d samples  %7.1f/s  lost frames %d  board drops %d" % (s.samples, s.rate, s.lost_frames, s.board_dropped), every=1.0)
 
@@ -35,11 +38,14 @@ def run(args):
         if status.get("calibration_crc") is None:
             print("warning: the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, "
                   "raw_ref) are logged" % (status.get("calibration_error"), ", ".join(CALIBRATED_FIELDS)), file=sys.stderr)
-        _, summary, png = watched(board, args.out, args.rate, args.live,
-                                  lambda recording: recording.pump(args.seconds, progress), close_stops=True)
+        _, summary, png, kept = watched(board, args.out, args.rate, args.live,
+                                        lambda recording: recording.pump(args.seconds, progress), close_stops=True,
+                                        keep=args.keep)
     end_progress()
     print("%s: %s" % (args.out, summary.line()))
     print("metadata (board, firmware, calibration CRC, units, mode and fault codes): %s" % metadata_path(args.out))
     if png:
         print("plot: %s" % png)
+    if kept:  # --keep: the file is complete, the board let go; the window is the person's to close
+        kept.wait()
     return 0

@@ -4,7 +4,7 @@ records the move's telemetry over the same connection, --live plots it as it com
 import json
 
 from host.api import Board
-from host.commands._options import add_port_arguments, live_arguments, ranged
+from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
 from host.errors import UserError
 from host.link.live_view import watched
 from host.terminal import end_progress, progress_line
@@ -25,10 +25,10 @@ def add_parser(subparsers):
 
 def run_motion(args, motion, unit):
     """Open the board and run `motion(board_or_recording, progress)` -> Settled, logged and
-    watched as --log/--live ask; the progress line shows the value in `unit`. Returns
-    (Settled, the log's summary or None, the PNG or None)."""
-    if args.live and not args.log:
-        raise UserError("--live needs --log FILE.csv (the run is recorded while it is shown)")
+    watched as --log/--live/--keep ask; the progress line shows the value in `unit`. Returns
+    (Settled, the log's summary or None, the PNG or None, the live window kept open or None:
+    the board is closed by then, and the caller waits on the window after its report)."""
+    check_live(args)
 
     def progress(value, seconds):
         progress_line("%6.2f s  %8.3f %s" % (seconds, value, unit), every=1.0)
@@ -37,11 +37,12 @@ def run_motion(args, motion, unit):
                uncalibrated=args.uncalibrated, require_calibration=True,
                stop_on_exit=not args.hold) as board:
         if args.log:
-            outcome, summary, png = watched(board, args.log, args.rate, args.live, lambda _: motion(board, progress))
+            outcome, summary, png, kept = watched(board, args.log, args.rate, args.live,
+                                                  lambda _: motion(board, progress), keep=args.keep)
         else:
-            outcome, summary, png = motion(board, progress), None, None
+            outcome, summary, png, kept = motion(board, progress), None, None, None
         end_progress()
-    return outcome, summary, png
+    return outcome, summary, png, kept
 
 
 def report(args, outcome, summary, png, text):
@@ -61,11 +62,13 @@ def report(args, outcome, summary, png, text):
 
 
 def run(args):
-    outcome, summary, png = run_motion(
+    outcome, summary, png, kept = run_motion(
         args, lambda board, progress: board.move(args.to, args.tolerance, args.timeout, args.hold, progress), "mm (D2)")
     if outcome.value is None:
         raise UserError("no telemetry from the board during the move")
     report(args, outcome, summary, png, "%s at %.3f mm (target %.3f mm) after %.2f s%s" % (
         "reached" if outcome.reached else "NOT settled", outcome.value, args.to, outcome.seconds,
         "" if outcome.reached else ": " + outcome.cause))
+    if kept:  # --keep: the outcome is printed, the board let go; the window is the person's to close
+        kept.wait()
     return 0 if outcome.reached else 1

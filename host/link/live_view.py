@@ -13,6 +13,10 @@ covered are counted as skipped rather than drawn late.
 
 A machine without a display (no DISPLAY, or matplotlib's backend is not interactive) gets no
 window; the commands write a PNG of the whole run at the end instead.
+
+`keep` (--keep) leaves the window open after the run: the drawing process outlives it and the
+command gets a KeptWindow to wait on once the board is closed and its motor stopped, so looking
+at the picture never holds the board.
 """
 
 import os
@@ -31,6 +35,7 @@ WINDOW_S = 10.0  # the newest seconds of board time shown
 MAX_POINTS = 1000  # per line, about one a pixel; the CSV keeps every record
 DRAWER_END_S = 30.0  # after the run, how long the drawing process may take to finish
 IO_SWITCH_S = 0.0005  # the interpreter's thread switch interval while drawing beside the board's I/O
+KEPT_IDLE_S = 0.05  # a kept window handles its events this often: resizing stays smooth, an idle CPU stays idle
 
 
 def open_window(title):
@@ -171,9 +176,11 @@ class LiveView:
         self.figure.canvas.flush_events()
 
 
-def _draw(rows_queue, report, stop, raw, title, canvas, close_stops):
+def _draw(rows_queue, report, stop, raw, title, canvas, close_stops, keep, release):
     """The drawing process: records off `rows_queue` (None ends it) onto a LiveView, redrawn when
-    due; puts ("headless",) or ("done", counts) on `report`. canvas: "window" or "agg"."""
+    due; puts ("headless",) or ("done", counts, kept) on `report`. canvas: "window" or "agg".
+    kept: `keep` and the window is still open, and then stays open, answering its events,
+    until the person closes it or `release` is set."""
     import signal
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the board process's to handle
@@ -211,27 +218,72 @@ def _draw(rows_queue, report, stop, raw, title, canvas, close_stops):
     if not view.closed:
         view.finish()
     newest = {line.get_label(): float(line.get_ydata()[-1]) for line, _ in view.plot.lines if len(line.get_ydata())}
+    kept = keep and canvas == "window" and not view.closed
     report.put(("done", {"redraws": view.redraws, "skipped": view.skipped, "full_redraws": view.full_redraws,
                          "board_seconds": view.clock.seconds, "newest": newest, "drawing_s": view.drawing_s,
-                         "longest_s": view.longest_s}))
+                         "longest_s": view.longest_s}, kept))
+    # the counts go first: the run is over and the board is let go while the window stays; its
+    # events are still handled, or it would not redraw, resize or close
+    while kept and not view.closed and not release.wait(KEPT_IDLE_S):
+        view.idle()
 
 
-def logged(board, path, rate, work, canvas=None, raw=False, close_stops=False):
+class KeptWindow:
+    """A live window left open after its run (--keep), in its drawing process: `wait()` until the
+    person closes it (or presses Ctrl-C), `release()` to close it from here."""
+
+    def __init__(self, drawer, release):
+        self._drawer = drawer
+        self._release = release
+
+    def alive(self):
+        return self._drawer.is_alive()
+
+    @property
+    def exitcode(self):
+        """The drawing process's exit status once it ended (0: it ended by itself), else None."""
+        return self._drawer.exitcode
+
+    def wait(self):
+        """Say so on stderr and wait until the window is closed; Ctrl-C ends the wait as closing does."""
+        from host.terminal import note
+
+        try:  # the note inside: a Ctrl-C as soon as it is on screen is the wait's to end
+            note("the live window stays open: close it to end")
+            while self._drawer.is_alive():
+                self._drawer.join(0.2)  # in slices, so that Ctrl-C is seen on every platform
+        except KeyboardInterrupt:
+            pass
+        finally:
+            self.release()
+
+    def release(self):
+        """Close the window: its process ends by itself, or is ended after DRAWER_END_S."""
+        self._release.set()
+        self._drawer.join(DRAWER_END_S)
+        if self._drawer.is_alive():
+            self._drawer.terminate()
+            self._drawer.join(DRAWER_END_S)
+
+
+def logged(board, path, rate, work, canvas=None, raw=False, close_stops=False, keep=False):
     """Run `work(recording)` with the board's telemetry at `rate` Hz logged to CSV `path` over the
     same connection (host.api.Board.log), drawn live when `canvas` is "window" (or "agg": the
     same drawing on the file-only canvas) in a process of its own, so that drawing never holds
     up this process's reading of the port. `raw`: a board without calibration (TelemetryFigure).
+    `keep`: the window stays open after the run, until closed.
     Returns (what work returned, the LogSummary, the view's report: None without a canvas,
-    {"headless": True} when no window could open, else its counts)."""
+    {"headless": True} when no window could open, else its counts; a KeptWindow when a window
+    was kept, else None)."""
     if canvas is None:
         with board.log(path, rate) as recording:
-            return work(recording), recording.summary, None
+            return work(recording), recording.summary, None, None
     import multiprocessing
 
     context = multiprocessing.get_context("spawn")  # a fresh interpreter: its own GUI, no forked threads
-    rows_queue, report, stop = context.Queue(), context.Queue(), context.Event()
+    rows_queue, report, stop, release = context.Queue(), context.Queue(), context.Event(), context.Event()
     drawer = context.Process(target=_draw, args=(rows_queue, report, stop, raw, "lsea-kit: %s" % path, canvas,
-                                                 close_stops), daemon=True)
+                                                 close_stops, keep, release), daemon=True)
     drawer.start()
     try:  # the window is up (or known not to open) before the run starts
         ready = report.get(timeout=DRAWER_END_S)
@@ -240,26 +292,33 @@ def logged(board, path, rate, work, canvas=None, raw=False, close_stops=False):
     if ready[0] == "headless":
         drawer.join(DRAWER_END_S)
         with board.log(path, rate) as recording:
-            return work(recording), recording.summary, {"headless": True}
+            return work(recording), recording.summary, {"headless": True}, None
     try:
         with board.log(path, rate, on_rows=rows_queue.put, stop=stop) as recording:
             result = work(recording)
+    except BaseException:
+        release.set()  # a run that failed keeps no window: nobody will wait on it
+        raise
     finally:
         rows_queue.put(None)
     try:
         outcome = report.get(timeout=DRAWER_END_S)
     except queue.Empty:
         outcome = None
+    if outcome is not None and outcome[2]:  # the drawer keeps its window: the caller waits, after the board
+        return result, recording.summary, outcome[1], KeptWindow(drawer, release)
     drawer.join(DRAWER_END_S)
     if drawer.is_alive():
         drawer.terminate()
-    return result, recording.summary, None if outcome is None else outcome[1]
+    return result, recording.summary, None if outcome is None else outcome[1], None
 
 
-def watched(board, path, rate, live, work, close_stops=False):
+def watched(board, path, rate, live, work, close_stops=False, keep=False):
     """`work(link)` with the telemetry logged to CSV `path` (logged()); `live`: drawn in a window,
-    or, where there is no display, a PNG of the whole run written beside the CSV at the end.
-    Returns (what work returned, the LogSummary, the PNG's path or None)."""
+    or, where there is no display, a PNG of the whole run written beside the CSV at the end;
+    `keep`: the window stays open after the run (nothing to keep without a display).
+    Returns (what work returned, the LogSummary, the PNG's path or None, a KeptWindow to wait
+    on once the board is closed, or None)."""
     from pathlib import Path
 
     from host.link.telemetry_plot import plot
@@ -268,10 +327,12 @@ def watched(board, path, rate, live, work, close_stops=False):
     display = live and not (sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or
                                                                       os.environ.get("WAYLAND_DISPLAY")))
     raw = (board.client.status_info or {}).get("calibration_crc") is None
-    result, summary, view = logged(board, path, rate, work, "window" if display else None, raw, close_stops)
+    result, summary, view, kept = logged(board, path, rate, work, "window" if display else None, raw, close_stops,
+                                         keep)
     png = None
     if live and (not display or (view or {}).get("headless")):
-        note("no display: a PNG of the run is written at the end instead of a live window")
+        note("no display: a PNG of the run is written at the end instead of a live window%s"
+             % (" (--keep: no window to keep)" if keep else ""))
         if summary.samples:
             png = plot(path, Path(path).with_suffix(".png"))
-    return result, summary, png
+    return result, summary, png, kept

@@ -44,8 +44,8 @@ def test_the_live_view_redraws_on_its_board_time_schedule_and_no_frame_is_lost(c
             recording.pump(2.0)
             return moved
 
-        result, summary, view = logged(board, out, 1000, work, canvas="agg")
-    assert result.reached
+        result, summary, view, kept = logged(board, out, 1000, work, canvas="agg")
+    assert result.reached and kept is None
     # every frame arrived (sequence numbers) and every 1 ms step is in the CSV
     assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
     data = load(out)
@@ -96,8 +96,8 @@ def test_a_real_window_is_drawn_live_and_no_frame_is_lost(calibration, tmp_path,
             recording.pump(1.0)
             return moved
 
-        result, summary, view = logged(board, out, 1000, work, canvas="window")
-    assert result.reached
+        result, summary, view, kept = logged(board, out, 1000, work, canvas="window")
+    assert result.reached and kept is None  # without keep the window closes with the run
     assert view is not None and not view.get("headless"), view
     assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
     data = load(out)
@@ -107,6 +107,67 @@ def test_a_real_window_is_drawn_live_and_no_frame_is_lost(calibration, tmp_path,
     scheduled = math.floor(view["board_seconds"] * REFRESH_HZ)
     assert view["redraws"] >= 1 and scheduled - 1 <= view["redraws"] + view["skipped"] <= scheduled, view
     assert abs(view["newest"]["D2 block"] - 20.0) < 0.3, view["newest"]
+
+
+def test_a_kept_window_outlives_the_run_and_the_board_until_released(calibration, tmp_path, x_display, monkeypatch,
+                                                                     capsys):
+    """--keep: the run ends, its counts come back and the board is closed, while the drawing
+    process keeps its window open; release() (a test, or Ctrl-C during wait()) ends it by itself
+    (exit status 0, not terminated). Two kept windows: one released from here, one whose wait()
+    gets a Ctrl-C as soon as its note is out."""
+    import _thread
+    import time
+
+    from host import terminal
+
+    runs = []
+    with Board("sim", calibration=calibration) as board:
+        for name in ("first.csv", "second.csv"):
+            runs.append(logged(board, tmp_path / name, 1000, lambda recording: recording.pump(0.5), canvas="window",
+                               keep=True))
+    for _, summary, view, kept in runs:
+        assert summary.samples > 0 and summary.lost_frames == 0
+        assert view is not None and not view.get("headless") and view["board_seconds"] > 0, view  # reported as today
+        assert kept is not None
+    time.sleep(1.0)  # the board is closed: a window that was not kept would have closed with the run by now
+    first, second = runs[0][3], runs[1][3]
+    assert first.alive() and second.alive()
+
+    first.release()
+    assert not first.alive() and first.exitcode == 0
+    assert second.alive()
+
+    said = []
+
+    def note_then_ctrl_c(text):  # Ctrl-C, as a person presses it while the window is up
+        said.append(text)
+        _thread.interrupt_main()
+
+    monkeypatch.setattr(terminal, "note", note_then_ctrl_c)
+    second.wait()  # returns: Ctrl-C ends the wait as closing the window does
+    assert said == ["the live window stays open: close it to end"]
+    assert not second.alive() and second.exitcode == 0
+
+
+def test_host_log_live_keep_waits_after_its_report_and_ctrl_c_ends_it(tmp_path, x_display, monkeypatch, capsys):
+    """The command's side of --keep: the log is complete, the board let go and the summary printed
+    before the one note and the wait; Ctrl-C then ends the command with its usual status."""
+    import _thread
+
+    from host import terminal
+
+    out = tmp_path / "run.csv"
+    printed_before = []
+
+    def note(text):
+        if "stays open" in text:  # the wait has begun: what was printed by then, then Ctrl-C
+            printed_before.append(capsys.readouterr().out)
+            _thread.interrupt_main()
+
+    monkeypatch.setattr(terminal, "note", note)
+    assert cli.main(["log", "--port", "sim", "--out", str(out), "--seconds", "0.5", "--live", "--keep"]) == 0
+    assert len(printed_before) == 1 and "%s: " % out in printed_before[0] and "metadata" in printed_before[0]
+    assert len(load(out)["t_us"]) > 0
 
 
 def test_between_axis_changes_only_the_lines_are_drawn():
@@ -205,6 +266,25 @@ def test_log_live_headless_writes_the_png(tmp_path, capsys, headless):
 def test_live_without_log_is_a_one_line_error(capsys):
     assert cli.main(["move", "--port", "sim", "--to", "30", "--live"]) == 2
     assert capsys.readouterr().err == "error: --live needs --log FILE.csv (the run is recorded while it is shown)\n"
+
+
+@pytest.mark.parametrize("argv", [["move", "--to", "30", "--log", "run.csv"], ["force", "--target", "-3"],
+                                  ["log", "--out", "run.csv"]])
+def test_keep_without_live_is_a_one_line_error(capsys, tmp_path, monkeypatch, argv):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main([*argv, "--port", "sim", "--keep"]) == 2
+    assert capsys.readouterr().err == "error: --keep needs --live (it keeps the live window open after the run)\n"
+    assert not (tmp_path / "run.csv").exists()  # refused before any board was opened
+
+
+def test_keep_without_a_display_writes_the_png_and_keeps_nothing(tmp_path, capsys, headless):
+    out = tmp_path / "run.csv"
+    assert cli.main(["log", "--port", "sim", "--out", str(out), "--seconds", "0.5", "--live", "--keep"]) == 0
+    printed = capsys.readouterr()
+    assert "plot: %s" % out.with_suffix(".png") in printed.out
+    assert out.with_suffix(".png").stat().st_size > 20000
+    assert "--keep: no window to keep" in printed.err
+    assert "stays open" not in printed.err
 
 
 def test_move_json(calibration, capsys):
