@@ -15,22 +15,25 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "fit",
         help="fit a potentiometer calibration curve to a sweep CSV",
-        description="Fit a calibration curve (default: the paper's BCM of degree 3) to a sweep "
-        "CSV with columns raw,reference[,direction]. Prints the fit statistics, the sweep's own "
-        "noise floor and what hygiene removed; optionally draws the fit and writes it to the "
-        "calibration file the firmware loads.",
+        description="Fit a calibration curve (default: auto, the cheapest curve the firmware evaluates "
+        "near the sweep's noise floor, as host calibrate chooses; --model bcm --order 3 is the paper's "
+        "BCM) to a sweep CSV with columns raw,reference[,direction]. Prints the fit statistics, the "
+        "sweep's own noise floor and what hygiene removed; optionally draws the fit and writes it to "
+        "the calibration file the firmware loads.",
     )
     p.add_argument("sweep", metavar="SWEEP.csv", help="sweep CSV (header with raw and reference; direction optional)")
     p.add_argument(
         "--model",
-        default="bcm",
+        default="auto",  # as host calibrate and host demo: a newcomer's first fit is the one a calibration makes
         choices=list(MODELS) + ["auto"],
-        help="calibration model (default bcm); auto = the cheapest firmware model near the noise floor",
+        help="calibration model (default auto, as host calibrate: the cheapest firmware model near the noise "
+        "floor, within --budget); bcm is the paper's",
     )
-    p.add_argument("--order", type=ranged(int, 1, 64), help="degree or number of knots/points (default: bcm 3, pwl 5, pcm 10, ...)")
-    p.add_argument("--bounds", choices=("data", "paper"), default="data",
-                   help="bcm search box: data (handles in the reference range +-10%%, w0=1, weight ratios 1/60..60) "
-                   "or paper (handles in [0, 60], weights in [1, 60])")
+    p.add_argument("--order", type=ranged(int, 1, 64),
+                   help="with a named --model: degree or number of knots/points (default: bcm 3, pwl 5, pcm 10, ...)")
+    p.add_argument("--bounds", choices=("data", "paper"), default=None,
+                   help="with --model bcm: the search box, data (default: handles in the reference range +-10%%, "
+                   "w0=1, weight ratios 1/60..60) or paper (handles in [0, 60], weights in [1, 60])")
     p.add_argument("--budget", type=ranged(int, 4, 4096), default=12, help="auto: most numbers the chosen model may store (default 12)")
     p.add_argument("--out", metavar="CALIB.json", help="write (or update) this pot's section of the calibration file")
     p.add_argument("--pot", choices=("pot1", "pot2"), default="pot1", help="which pot --out writes (default pot1)")
@@ -77,10 +80,15 @@ def run(args):
     from host.calibration.file import write_pot
     from host.fitting.sweep import adc_bits_of, load_sweep
 
+    if args.model == "auto":  # auto chooses the model and its order: ignoring these would mislead
+        given = [name for name, value in (("--order", args.order), ("--bounds", args.bounds)) if value is not None]
+        if given:
+            raise UserError("%s needs a named --model: auto chooses the model and its order (e.g. --model bcm %s)"
+                            % (" and ".join(given), "--order 3" if args.order is not None else "--bounds paper"))
     say = (lambda msg: None) if args.json else note
     sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()
-    result, floors, reason = fit_sweep(sweep, args.model, args.order, args.bounds, args.budget, progress=say)
+    result, floors, reason = fit_sweep(sweep, args.model, args.order, args.bounds or "data", args.budget, progress=say)
     noise = floors["noise_floor"]
     total = time.perf_counter() - t0
     out = result.summary()
@@ -110,7 +118,9 @@ def run(args):
         if why and not args.force:
             raise UserError("not writing %s: %s (--force writes it anyway)" % (args.out, "; ".join(why)))
         if poor_fit(result, noise):
-            say("warning: rms %.4g is %.0f times the noise floor: a poor fit (try --model auto)" % (result.rms, result.rms / noise))
+            say("warning: rms %.4g is %.0f times the noise floor: a poor fit (%s)" % (
+                result.rms, result.rms / noise, "a larger --budget allows a longer table" if args.model == "auto"
+                else "try --model auto, the default"))
         bits = args.adc_bits or adc_bits_of(sweep.x)
         if bits is None:
             raise UserError("raw does not look like ADC codes; give --adc-bits to write a calibration file")

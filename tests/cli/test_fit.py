@@ -19,7 +19,7 @@ def _json(capsys, *argv):
 
 
 def test_json_has_the_promised_fields(capsys):
-    out = _json(capsys, EXAMPLE)
+    out = _json(capsys, EXAMPLE, "--model", "bcm")
     for key in ("model", "order", "rms", "max_abs", "monotone", "noise_floor", "n_samples", "n_excluded", "fit_seconds"):
         assert key in out
     assert out["model"] == "bcm" and out["order"] == 3 and out["monotone"] is True
@@ -33,13 +33,13 @@ def test_json_has_the_promised_fields(capsys):
 
 
 def test_summary_is_readable(capsys):
-    assert main(["fit", EXAMPLE, "--order", "2"]) == 0
+    assert main(["fit", EXAMPLE, "--model", "bcm", "--order", "2"]) == 0
     text = capsys.readouterr().out
     assert "model: bcm order 2" in text and "rms / noise floor" in text and "monotone: yes" in text
 
 
 def test_paper_bounds_option(capsys):
-    out = _json(capsys, EXAMPLE, "--bounds", "paper")
+    out = _json(capsys, EXAMPLE, "--model", "bcm", "--bounds", "paper")
     assert min(out["coefficients"]["handles"]) >= 0 and max(out["coefficients"]["handles"]) <= 60
 
 
@@ -57,15 +57,39 @@ def test_auto_reports_a_reason(capsys):
     assert "floor" in out["auto_reason"]
 
 
+def test_without_model_fit_chooses_as_calibrate_does(capsys):
+    """A newcomer's `host fit SWEEP.csv` makes the curve a calibration would: the default --model
+    is calibrate's (auto), and the fit is the one --model auto makes."""
+    from host.cli import build_parser
+
+    def default_model(*argv):
+        return build_parser().parse_args(list(argv)).model
+
+    assert default_model("fit", EXAMPLE) == default_model("calibrate") == "auto"
+    chosen = _json(capsys, EXAMPLE)
+    auto = _json(capsys, EXAMPLE, "--model", "auto")
+    assert chosen["auto_reason"] == auto["auto_reason"]
+    assert (chosen["model"], chosen["order"], chosen["rms"]) == (auto["model"], auto["order"], auto["rms"])
+
+
+@pytest.mark.parametrize("argv, given", [(["--order", "5"], "--order"), (["--model", "auto", "--bounds", "paper"], "--bounds"),
+                                         (["--order", "5", "--bounds", "paper"], "--order and --bounds")])
+def test_options_of_a_named_model_are_refused_under_auto(capsys, argv, given):
+    """`host fit X --order 5` meant BCM-5 when bcm was the default: under auto it must not be dropped silently."""
+    assert main(["fit", EXAMPLE, *argv]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: %s needs a named --model: auto chooses" % given) and err.count("\n") == 1, err
+
+
 def test_out_writes_a_calibration_the_firmware_accepts(tmp_path, capsys):
     from firmware.calibration import convert, load_calibration
     from host.fitting.rational_bezier import evaluate
 
     path = tmp_path / "calib.json"
-    first = _json(capsys, EXAMPLE, "--out", str(path))
+    first = _json(capsys, EXAMPLE, "--model", "bcm", "--out", str(path))
     assert first["calibration"]["adc_bits"] == 12 and path.exists()
     # a lower-degree BCM goes in as the same curve elevated to degree 3; pot1 is kept
-    second = _json(capsys, EXAMPLE, "--order", "2", "--out", str(path), "--pot", "pot2")
+    second = _json(capsys, EXAMPLE, "--model", "bcm", "--order", "2", "--out", str(path), "--pot", "pot2")
     cal = load_calibration(str(path))
     assert cal.crc == second["calibration"]["crc32"]
     assert cal.pot1[0] == "bcm3" and cal.pot2[0] == "bcm3"
@@ -83,7 +107,7 @@ def test_out_records_board_and_pot_identity(tmp_path, capsys):
     out = _json(capsys, EXAMPLE, "--out", path, "--board", "bench-rig-1", "--pot-id", "P1-0042")
     assert out["calibration"]["board"] == "bench-rig-1" and out["calibration"]["pot_id"] == "P1-0042"
     _json(capsys, EXAMPLE, "--out", path, "--pot", "pot2", "--pot-id", "P2-0007")
-    _json(capsys, EXAMPLE, "--order", "2", "--out", path)  # refit pot1: board and id stay
+    _json(capsys, EXAMPLE, "--model", "bcm", "--order", "2", "--out", path)  # refit pot1: board and id stay
     doc = read_calibration(path)
     assert doc["board"] == "bench-rig-1" and doc["pots"] == {"pot1": "P1-0042", "pot2": "P2-0007"}
     assert doc["pot1"]["pot_id"] == "P1-0042" and doc["pot2"]["pot_id"] == "P2-0007"
@@ -118,7 +142,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path, capsys, name):
 def test_missing_file_and_bad_order(tmp_path, capsys):
     assert main(["fit", str(tmp_path / "missing.csv")]) == 2
     assert "no sweep file at" in capsys.readouterr().err
-    assert main(["fit", EXAMPLE, "--order", "0"]) == 2
+    assert main(["fit", EXAMPLE, "--model", "bcm", "--order", "0"]) == 2
     assert "--order" in capsys.readouterr().err
 
 
@@ -165,7 +189,7 @@ def test_full_scale_checks_coverage_of_a_volts_sweep(tmp_path, capsys):
 def test_real_console_script(tmp_path):
     proc = subprocess.run([sys.executable, "-m", "host", "fit", EXAMPLE, "--json"], capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
-    assert json.loads(proc.stdout)["model"] == "bcm"
+    assert "auto_reason" in json.loads(proc.stdout)  # the default, --model auto
     proc = subprocess.run([sys.executable, "-m", "host", "fit", str(tmp_path / "x.csv")], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
 
@@ -210,13 +234,14 @@ def test_fit_out_refuses_what_cannot_be_a_calibration(tmp_path, capsys):
     for sweep, words in ((scattered, "error: not writing"), (scattered, "of the reference's span"),
                          (falling, "pot_invert"), (huge, "beyond")):
         out = tmp_path / "cal.json"
-        code = cli.main(["fit", sweep, "--out", str(out), "-q"])
+        code = cli.main(["fit", sweep, "--model", "bcm", "--out", str(out), "-q"])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and words in err[0], err
         assert not out.exists()
-    assert cli.main(["fit", scattered, "--out", str(tmp_path / "forced.json"), "--force"]) == 0
-    assert cli.main(["fit", falling, "--out", str(tmp_path / "forced-falling.json"), "--force"]) == 0
-    code = cli.main(["fit", huge, "--out", str(tmp_path / "forced-huge.json"), "--force"])
+    bcm = ["--model", "bcm"]  # a curve --force can write whatever the sweep (auto's table may not export at all)
+    assert cli.main(["fit", scattered, *bcm, "--out", str(tmp_path / "forced.json"), "--force"]) == 0
+    assert cli.main(["fit", falling, *bcm, "--out", str(tmp_path / "forced-falling.json"), "--force"]) == 0
+    code = cli.main(["fit", huge, *bcm, "--out", str(tmp_path / "forced-huge.json"), "--force"])
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and err[-1].startswith("error: ") and not (tmp_path / "forced-huge.json").exists(), err
 
