@@ -35,6 +35,16 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
+def time_left(elapsed_s, done, total):
+    """", about N s left" after `done` of `total` models, from the wall time per fit so far (every
+    model fits the same orders, so per model is per fit); "" once nothing is left. An estimate:
+    the BCM at high order is slower than the rest, so it changes as models finish."""
+    if done >= total or done <= 0:
+        return ""
+    left = elapsed_s / done * (total - done)
+    return ", about %s left" % ("%.1f s" % left if left < 10 else "%.0f s" % left if left < 120 else "%.0f min" % (left / 60))
+
+
 def run(args):
     from host.fitting.noise_floor import estimate_noise
     from host.fitting.sweep import load_sweep
@@ -70,10 +80,12 @@ def run(args):
     def progress(name, i, n, seconds):
         if args.quiet:
             return
+        left = time_left(time.perf_counter() - t0, i, n)  # wall time: with --jobs the fits overlap
         if name in started:  # its orders were shown as they started
-            print(": %d fits in %.2f s" % (len(orders), seconds), file=sys.stderr, flush=True)
+            print(": %d fits in %.2f s%s" % (len(orders), seconds, left), file=sys.stderr, flush=True)
         else:  # worker processes: one line per model as it completes
-            print("[%d/%d] %-7s %d fits in %.2f s" % (i, n, name, len(orders), seconds), file=sys.stderr, flush=True)
+            print("[%d/%d] %-7s %d fits in %.2f s%s" % (i, n, name, len(orders), seconds, left), file=sys.stderr,
+                  flush=True)
 
     rows = compare_models(sweep.x, sweep.y, orders, models, noise=noise, progress=progress,
                           on_order=on_order if args.jobs == 1 else None, jobs=args.jobs)

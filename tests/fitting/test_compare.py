@@ -104,6 +104,31 @@ def test_cli_writes_plot_and_table_and_prints_progress(tmp_path):
     assert "| order | bcm | pcm | lut | pwl |" in proc.stdout
 
 
+@pytest.mark.parametrize("jobs", ["1", "2"])
+def test_cli_progress_says_about_how_long_is_left(tmp_path, jobs):
+    """After each model but the last, the progress line on stderr estimates the time left; in
+    one process (orders shown as they start) and with worker processes (a line per model)."""
+    import re
+
+    proc = _cli(_knee_sweep(tmp_path / "knee.csv"), "--orders", "2-3", "--models", "pcm,lut,pwl", "--out",
+                tmp_path / "cmp", "--jobs", jobs)
+    assert proc.returncode == 0, proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.startswith("[")]
+    assert [line[:5] for line in lines] == ["[1/3]", "[2/3]", "[3/3]"], proc.stderr
+    for line in lines[:-1]:
+        assert re.search(r"2 fits in [0-9.]+ s, about [0-9.]+ (s|min) left$", line), line
+    assert "left" not in lines[-1], lines[-1]
+
+
+def test_time_left_is_the_wall_time_per_model_so_far_times_the_models_to_go():
+    from host.commands.compare import time_left
+
+    assert time_left(6.0, 2, 5) == ", about 9.0 s left"
+    assert time_left(12.0, 1, 3) == ", about 24 s left"
+    assert time_left(60.0, 1, 7) == ", about 6 min left"
+    assert time_left(6.0, 5, 5) == ""  # nothing left to estimate
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
