@@ -8,6 +8,8 @@ command takes the same --port and the options of a virtual board started for it.
 import argparse
 import math
 
+from host.link.port_advice import example_port
+
 
 def ranged(kind, lo, hi):
     """An argparse type: `kind` (int or float) within [lo, hi]."""
@@ -44,10 +46,10 @@ def add_load_argument(parser, help_prefix="for --port sim or sim:rp2040: "):
     parser.add_argument("--load", type=load_option, default=None, metavar=LOAD_METAVAR, help=help_prefix + LOAD_HELP)
 
 
-PORT_HELP = ("serial port of the board (e.g. /dev/ttyACM0), 'sim' for a virtual board started for this command (the "
+PORT_HELP = ("serial port of the board (e.g. %s), 'sim' for a virtual board started for this command (the "
              "firmware on the MicroPython unix port), 'sim:rp2040' for an emulated Pico started for it (the Pico's "
              "MicroPython, --uf2, on rp2040js; the firmware installed with host flash), or 'auto' (the default: the "
-             "one board `host ports` finds)")
+             "one board `host ports` finds)" % example_port())
 
 
 def add_uf2_argument(parser):

@@ -23,6 +23,7 @@ import serial
 from firmware import protocol as P
 from host.errors import UserError
 from host.link.frames import FrameDecoder
+from host.link.port_advice import open_failure
 
 HEARTBEAT_S = 0.25  # well inside the firmware's default 1000 ms host timeout
 PATIENCE_S = 8.0  # wall-clock seconds a request resends before the board counts as not answering
@@ -66,12 +67,7 @@ class BoardClient:
         try:
             ser = serial.Serial(port, 115200, timeout=0.02, write_timeout=2, exclusive=True)
         except (serial.SerialException, OSError) as exc:
-            text = str(exc)
-            if "No such file" in text or "could not open port" in text and "No such" in text:
-                raise UserError("serial port %s not found (is the board plugged in? try `host sim`)" % port)
-            if "busy" in text.lower() or "lock" in text.lower():
-                raise UserError("serial port %s is busy (close mpremote/minicom/another host command)" % port)
-            raise UserError("cannot open serial port %s: %s" % (port, text))
+            raise UserError(open_failure(port, str(exc))) from None  # what to do, in this platform's words
         ser.reset_input_buffer()
         return ser
 

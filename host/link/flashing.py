@@ -27,6 +27,7 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from host.errors import UserError, install_hint
+from host.link.port_advice import advice
 
 REPO = Path(__file__).resolve().parents[2]
 STAGING = "_new"
@@ -304,7 +305,7 @@ def flash(port, board_name="sim", calibration=None, progress=print, replace_boar
     firmware is asked what it is: nothing is copied when anything is wrong. `force`: install a
     calibration whose readable fields contradict its tables or name no board."""
     if "/" in port and not Path(port).exists():
-        raise UserError("serial port %s not found (is the board plugged in? try `host sim`)" % port)
+        raise UserError(advice("missing", port))
     running = identify(port) if ask_board else None
     if board_name is None:
         if running is None:

@@ -2,6 +2,7 @@
 rule `--port auto` follows (exactly one candidate, or a one-line error naming them)."""
 
 from host.errors import UserError
+from host.link.port_advice import advice
 
 # (USB vendor id, product id or None for any) -> what is usually behind it
 KNOWN = (
@@ -52,9 +53,7 @@ def choose(ports):
     if len(found) == 1:
         return found[0][0]
     if not found:
-        seen = ", ".join(p[0] for p in ports) or "none"
-        raise UserError("no board found (serial ports: %s): plug it in, or name it with --port; for a virtual board "
-                        "start `host sim` in another terminal, or use --port sim (one for this command only)" % seen)
+        raise UserError(advice("none found", ", ".join(p[0] for p in ports) or "none"))
     raise UserError("%d boards found (%s): name one with --port" % (len(found), ", ".join(p[0] for p in found)))
 
 

@@ -1,7 +1,8 @@
 """The host CLI where POSIX-only modules are missing (Windows): every command builds and the
 board-free ones run; only the virtual board, which needs a pseudo-terminal, says in one line
 that it cannot run there. Simulated by refusing fcntl, termios, tty and pty to our own packages
-(pyserial keeps its own platform choice)."""
+(pyserial keeps its own platform choice). And the advice for a port that will not open, in each
+platform's words (COM ports and the Device Manager on Windows, the dialout group on Linux)."""
 
 import subprocess
 import sys
@@ -89,3 +90,81 @@ def test_where_pip_installed_from_is_read_from_its_record(monkeypatch):
                              (None, None)):
         monkeypatch.setattr(metadata, "distribution", lambda name, r=record: Dist(r))
         assert errors._installed_from() == expected, record
+
+
+# pyserial's own messages for a port that would not open, as each platform words them
+PYSERIAL_SAYS = {
+    ("linux", "missing"): "[Errno 2] could not open port /dev/ttyACM0: [Errno 2] No such file or directory: '/dev/ttyACM0'",
+    ("linux", "denied"): "[Errno 13] could not open port /dev/ttyACM0: [Errno 13] Permission denied: '/dev/ttyACM0'",
+    ("linux", "busy"): "[Errno 11] Could not exclusively lock port /dev/ttyACM0: [Errno 11] Resource temporarily unavailable",
+    ("darwin", "missing"): "[Errno 2] could not open port /dev/cu.usbmodem1101: [Errno 2] No such file or directory: "
+                           "'/dev/cu.usbmodem1101'",
+    ("darwin", "busy"): "[Errno 16] could not open port /dev/cu.usbmodem1101: [Errno 16] Resource busy: '/dev/cu.usbmodem1101'",
+    ("win32", "missing"): "could not open port 'COM7': FileNotFoundError(2, 'The system cannot find the file specified.', "
+                          "None, 2)",
+    ("win32", "busy"): "could not open port 'COM3': PermissionError(13, 'Access is denied.', None, 5)",  # held elsewhere
+}
+LINUX_WORDS = ("dialout", "/dev/tty", "fuser", "lsof", "usermod")
+
+
+@pytest.mark.parametrize("platform, problem", sorted(PYSERIAL_SAYS))
+def test_a_port_that_will_not_open_gets_advice_in_its_platforms_words(platform, problem):
+    from host.link.port_advice import open_failure, problem_of
+
+    text = PYSERIAL_SAYS[platform, problem]
+    port = {"linux": "/dev/ttyACM0", "darwin": "/dev/cu.usbmodem1101", "win32": "COM3"}[platform]
+    said = open_failure(port, text, platform)
+    assert "\n" not in said and port in said, said
+    wanted = {"missing": "not found (is the board plugged in?", "denied": "no permission to open serial port",
+              "busy": "is busy: close the other program using"}[problem]
+    assert wanted in said, said
+    if platform == "win32":  # COM ports, the Device Manager, no Linux tools, no virtual board (it needs WSL)
+        assert not any(word in said for word in LINUX_WORDS) and "host sim" not in said, said
+        assert ("Device Manager" in said) == (problem == "missing"), said
+        assert problem != "busy" or ("Thonny" in said and "one program at a time" in said), said
+        assert problem_of(text) == {"missing": "missing", "busy": "denied"}[problem]  # Windows' words, read as Windows means them
+    elif platform == "darwin":
+        assert "dialout" not in said and "fuser" not in said and "Device Manager" not in said, said
+        assert problem != "busy" or "`lsof /dev/cu.usbmodem1101`" in said, said
+        assert problem != "missing" or "/dev/cu.usbmodem*" in said, said
+    else:
+        assert "Device Manager" not in said and "COM" not in said, said
+        assert problem != "denied" or "dialout group" in said, said
+        assert problem != "busy" or "`fuser /dev/ttyACM0`" in said, said
+        assert problem != "missing" or "/dev/ttyACM0" in said, said
+
+
+@pytest.mark.parametrize("platform, example", [("linux", "/dev/ttyACM0"), ("darwin", "/dev/cu.usbmodem1101"),
+                                               ("win32", "COM3")])
+def test_no_board_found_names_a_port_as_its_platform_does(platform, example):
+    from host.link.port_advice import advice
+
+    said = advice("none found", "none", platform)
+    assert said.startswith("no board found (serial ports: none): plug it in") and "e.g. %s" % example in said, said
+    assert ("host sim" in said) == (platform != "win32"), said  # a virtual board needs a pseudo-terminal
+
+
+def test_a_port_held_by_another_program_is_busy_on_this_machine():
+    """A real pyserial refusal here: a port (a pseudo-terminal) held open exclusively, as Thonny
+    or another host command would hold a board's port, is reported busy with this platform's advice."""
+    import os
+
+    import serial
+
+    from host.errors import UserError
+    from host.link.board_client import BoardClient
+    from host.link.port_advice import advice
+
+    if not hasattr(os, "openpty"):
+        pytest.skip("no pseudo-terminals on this platform")
+    master, slave = os.openpty()
+    path = os.ttyname(slave)
+    held = serial.Serial(path, 115200, exclusive=True)
+    try:
+        with pytest.raises(UserError) as refused:
+            BoardClient(path, check=False)
+        assert str(refused.value) == advice("busy", path)
+    finally:
+        held.close()
+        os.close(master)
+        os.close(slave)
