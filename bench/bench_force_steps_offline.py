@@ -180,29 +180,47 @@ TRIM = {"on": False, "f0": True}  # --trim, --no-f0
 def trimmed_calibration(board, cal, out_path):
     """The calibration with its friction trimmed in closed loop as the guided step does it after
     the force step (host/guided/friction_trim.py): force-mode holds at the trim's targets for a
-    16 N range on both sides, at REFIT_ANCHOR, on a freshly started firmware each side."""
+    16 N range on both sides, at REFIT_ANCHOR, on a freshly started firmware each side; a
+    corrected F0 kept only when the check's holds (CHECK_FRACTIONS) read nearer the gauge with
+    it than without it, as host/guided/flow.py decides."""
     from host.calibration.file import read_calibration, write_calibration
-    from host.guided.friction_trim import trim_magnitudes, trimmed_friction, trimmed_sections
-    from tests.sim.firmware_cases import case_force_steps_sim
+    from host.guided.friction_trim import (CHECK_FRACTIONS, TRIM_FRACTIONS, keep_correction, rms_error_mn,
+                                           trimmed_friction, trimmed_sections)
 
     doc = read_calibration(cal)
-    identified = doc["friction"]
-    magnitudes = trim_magnitudes(REFIT_RANGE_MN / 1000.0)
-    sides = {}
-    for side, sign in SIDES:
-        rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=REFIT_ANCHOR,
-                                    measured=LOAD["measured"],
-                                    board_path=board)
-        sides[sign] = [(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)]
-    trim = trimmed_friction(identified["friction_n"], sides)
+    trim = trimmed_friction(doc["friction"]["friction_n"], side_holds(cal, board, TRIM_FRACTIONS))
     if not TRIM["f0"]:
         trim.f0.why = "--no-f0"
     sections, lines = trimmed_sections(doc, trim)
+    if "force" in sections:
+        rms = {}
+        for name, chosen in (("with", sections), ("without", {"friction": sections["friction"]})):
+            write_calibration(out_path, dict(doc, **chosen))
+            rms[name] = rms_error_mn(side_holds(out_path, board, CHECK_FRACTIONS))
+        if not keep_correction(rms["with"], rms["without"]):
+            sections = {"friction": sections["friction"]}
+        lines.append("F0 correction %s: check rms %.0f mN with it, %.0f without" % (
+            "kept" if "force" in sections else "NOT kept", rms["with"], rms["without"]))
     doc.update(sections)
     write_calibration(out_path, doc)
     for line in lines:
         print("      trim: " + line, flush=True)
     return out_path
+
+
+def side_holds(cal, board, fractions):
+    """Force-mode holds at `fractions` of a 16 N range on both sides, as side_holds in
+    host/guided/friction_trim.py gives them: {sign: [(magnitude, estimate, gauge)]} (N)."""
+    from host.guided.friction_trim import trim_magnitudes
+    from tests.sim.firmware_cases import case_force_steps_sim
+
+    magnitudes = trim_magnitudes(REFIT_RANGE_MN / 1000.0, fractions)
+    sides = {}
+    for side, sign in SIDES:
+        rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=REFIT_ANCHOR,
+                                    measured=LOAD["measured"], board_path=board)
+        sides[sign] = [(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)]
+    return sides
 
 
 def calibration(runs, seed, exact, tmp):

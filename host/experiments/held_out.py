@@ -34,7 +34,7 @@ from host.experiments import displacement, force_runs
 from host.fitting.assembly import STOP_ZONE_UM, near_the_stops
 from host.guided import acquire, stroke
 from host.guided.force_calibration import SIDES
-from host.guided.friction_trim import trim_magnitudes
+from host.guided.friction_trim import CHECK_FRACTIONS, trim_magnitudes
 
 POSITIONS = 6
 LOADING = 3
@@ -162,5 +162,6 @@ def side_ranges(force_data, sides):
 
 
 def held_by_calibration(reached_n):
-    """The magnitudes the force step's closed-loop trim held on a side that reached `reached_n`."""
-    return sorted(set(trim_magnitudes(reached_n)))
+    """The magnitudes the force step's closed-loop trim and its F0 check held on a side that
+    reached `reached_n`."""
+    return sorted(set(trim_magnitudes(reached_n)) | set(trim_magnitudes(reached_n, CHECK_FRACTIONS)))

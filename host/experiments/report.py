@@ -365,9 +365,9 @@ def _held_out_section(add, r):
     draws = ho.get("force_draws") or {}
     if draws:
         add("**Force steps at drawn forces**: on each side 3 loading forces from 15-90 %% of the range the force step "
-            "reached, then 3 unloading ones below the highest, at least 0.5 N from the forces the trim held and the "
+            "reached, then 3 unloading ones below the highest, at least 0.5 N from the forces the trim and its F0 check held and the "
             "paper's 5/10/15 N and 0.25 N from the force step's levels: %s." % "; ".join(
-                "%s side reached %s N, the trim held %s N" % (side, _f(d["reached_n"], 1), ", ".join("%g" % v for v in d["held_by_calibration_n"]) or "none")
+                "%s side reached %s N, the trim and its check held %s N" % (side, _f(d["reached_n"], 1), ", ".join("%g" % v for v in d["held_by_calibration_n"]) or "none")
                 for side, d in draws.items()))
         add("")
     if forces:

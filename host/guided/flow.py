@@ -124,7 +124,7 @@ def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
     flashed again, the lines added to the step's. The identified calibration is already written
     and on the board, so a trim that cannot be done leaves it as it is and says why."""
     from host.calibration.file import now_iso
-    from host.guided.friction_trim import trim_friction, trimmed_sections
+    from host.guided.friction_trim import CHECK_FRACTIONS, check_rms_mn, keep_correction, trim_friction, trimmed_sections
 
     identified = (outcome.sections.get("friction") or {})
     if not (opts.trim and opts.friction and identified.get("friction_n", 0) > 0):
@@ -140,16 +140,39 @@ def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
         outcome.lines.append("force: friction not trimmed (%s); h stays %.3f N as identified" % (exc, identified["friction_n"]))
         prompter.say("  " + outcome.lines[-1])
         return
-    doc = read_calibration(path)
-    sections, lines = trimmed_sections(doc, trim)
-    if sections:  # one write: F0 and its inverse must not disagree on the board
-        doc.update(sections, date=now_iso())
+    identified_doc = read_calibration(path)
+    sections, lines = trimmed_sections(identified_doc, trim)
+
+    date = now_iso()  # once: the same sections make the same file, and the same CRC on the board
+
+    def install(chosen):  # one write: F0 and its inverse must not disagree on the board
+        doc = dict(identified_doc, **chosen)
+        doc["date"] = date
         if board_name is not None:
             doc["board"] = board_name
         write_calibration(path, doc)
+        session.flash(path)
+
+    if "force" in sections:  # F0 corrected: kept only if the check's holds say it helps
+        install(sections)
+        with_mn = check_rms_mn(session, rig, prompter, opts, outcome.data, "F0 check, corrected")
+        h_only = {"friction": sections["friction"]}
+        install(h_only)
+        without_mn = check_rms_mn(session, rig, prompter, opts, outcome.data, "F0 check, as identified")
+        figures = "rms estimate - gauge %s mN with it, %s mN without, at %s of each side's range" % (
+            "-" if with_mn is None else "%.0f" % with_mn, "-" if without_mn is None else "%.0f" % without_mn,
+            "/".join("%g" % f for f in CHECK_FRACTIONS))
+        if keep_correction(with_mn, without_mn):
+            install(sections)
+            lines.append("force: F0 correction checked in closed loop and kept (%s)" % figures)
+        else:
+            sections = h_only
+            lines.append("force: F0 correction checked in closed loop and NOT kept, F0 stays as identified (%s)" % figures)
+    elif sections:
+        install(sections)
+    if sections:
         outcome.sections.update(sections)
         outcome.data["friction_n"] = trim.friction_n
-        session.flash(path)
     for line in lines:
         outcome.lines.append(line)
         prompter.say("  " + line)

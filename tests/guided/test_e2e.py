@@ -45,15 +45,22 @@ def test_every_step_is_accepted_written_and_verified(full_run):
         assert doc[pot]["model"] in ("bcm", "pwl") and doc[pot]["fit"]["rms"] < 0.05, doc[pot]["fit"]
     assert doc["df"]["fit"]["order"] >= 4  # the paper's quartic, or higher by cross-validation
     crcs = [int(m.group(1), 16) for m in map(re.compile(r"firmware runs calibration crc ([0-9a-f]{8})").search, said) if m]
-    # one flash per step, each a new file, and one more after the force step's friction trim
-    assert len(crcs) == 4 and len(set(crcs)) == 4, crcs
     trim = doc["friction"]["fit"]
     assert trim["trim_holds"] >= 8 and abs(doc["friction"]["friction_n"] - trim["identified_n"]) < 0.5 * trim["identified_n"]
     assert any("friction trimmed in closed loop" in line for line in said)
-    # and F0 corrected by what the holds left: a table, its inverse the same knots swapped
+    # F0 corrected by what the holds left, then checked in closed loop against the identified F0
     assert any("F0 corrected in closed loop" in line for line in said), [x for x in said if "F0" in x]
-    assert doc["force"]["kind"] == doc["force_inverse"]["kind"] == "pwl" and doc["force"]["fit"]["identified"]
-    assert doc["force"]["knots_in"] == doc["force_inverse"]["knots_out"]
+    checked = [line for line in said if "F0 correction checked in closed loop" in line]
+    assert len(checked) == 1, [x for x in said if "F0" in x]
+    # one flash per step, each a new file; after the force step's trim, the corrected F0 and the
+    # identified one for the check, and the corrected one once more when it is kept
+    if "and kept" in checked[0]:  # a table, its inverse the same knots swapped
+        assert len(crcs) == 6 and len(set(crcs)) == 5 and crcs[-1] == crcs[-3], crcs
+        assert doc["force"]["kind"] == doc["force_inverse"]["kind"] == "pwl" and doc["force"]["fit"]["identified"]
+        assert doc["force"]["knots_in"] == doc["force_inverse"]["knots_out"]
+    else:
+        assert "NOT kept" in checked[0] and len(crcs) == 5 and len(set(crcs)) == 5, crcs
+        assert "correction_mn" not in doc["force"]["fit"]
     assert crcs[-1] == json.loads(out.read_text())["crc32"]
     for png in ("calibration-pot1.png", "calibration-pot2.png", "calibration-df.png", "calibration-force.png"):
         assert (out.parent / png).stat().st_size > 10000

@@ -3,6 +3,8 @@ what a too-large or too-small h and an F0 error leave in estimate - gauge, and w
 
 import math
 
+import numpy as np
+
 from host.guided.friction_trim import trim_magnitudes, trimmed_friction
 
 
@@ -49,3 +51,79 @@ def test_a_trim_beyond_half_of_h_and_200_mN_is_not_trusted():
     assert trim.friction_n == 0.6 and "more than 50 %" in trim.why and trim.f0.why, trim
     small = trimmed_friction(0.18, {1: holds(trim_magnitudes(16.0), 0.0, -0.12)})  # 67 % of a small h, but 120 mN
     assert math.isclose(small.friction_n, 0.30, abs_tol=1e-9) and not small.why, small
+
+
+def test_the_check_keeps_an_f0_correction_only_when_it_brought_the_estimate_nearer_the_gauge():
+    from host.guided.friction_trim import keep_correction, rms_error_mn
+
+    sides = {1: [(3.2, 3.30, 3.20), (7.2, 7.10, 7.20), (1.0, 1.2, 0.1)], -1: [(3.2, 3.25, 3.20)]}
+    # the slack hold (gauge 0.1 N) says nothing; rms of +100, -100 and +50 mN
+    assert math.isclose(rms_error_mn(sides), (20000 / 3 + 2500 / 3) ** 0.5, rel_tol=1e-9)
+    assert rms_error_mn({1: [(1.0, 1.2, 0.1)]}) is None
+    assert keep_correction(60.0, 80.0) and not keep_correction(80.0, 60.0) and not keep_correction(70.0, 70.0)
+    assert not keep_correction(None, 80.0) and not keep_correction(60.0, None)
+
+
+class _Board:
+    """The session's side of the flow: which force section each flash put on the board."""
+
+    def __init__(self):
+        self.flashed = []
+
+    def flash(self, path):
+        from host.calibration.file import read_calibration
+
+        self.flashed.append("corrected" if "correction_mn" in read_calibration(path)["force"]["fit"] else "identified")
+
+
+def _trim_and_check(tmp_path, monkeypatch, rms_with, rms_without):
+    """The flow's trim on the model calibration with a Trim whose F0 correction is 3 % of each
+    hold, and a check whose holds read `rms_with` with the corrected F0 on the board, `rms_without`
+    with the identified one: (the file after, what was flashed in turn, the lines said)."""
+    from types import SimpleNamespace
+
+    import host.guided.friction_trim as friction_trim
+    from host.calibration.file import read_calibration
+    from host.guided import flow
+    from host.calibration.file import force_table_section
+    from testkit.model import sim_board, spring_forces, write_model_calibration
+
+    board_file = sim_board()
+    cav = float(board_file["actuator"]["springs"]["cavity_mm"])
+    d = np.linspace(-cav, cav, 41)
+    f = spring_forces(board_file, d)
+    path = tmp_path / "cal.json"
+    write_model_calibration(path, force=force_table_section(d, f, (-cav, cav), ("um", "mN"), {"rms": 0.0}),
+                            force_inverse=force_table_section(f, d, (-25.0, 25.0), ("mN", "um")),
+                            friction={"kind": "friction", "friction_n": 0.40, "fit": {}, "fixed": [400]})
+    m = trim_magnitudes(16.0)
+    trim = trimmed_friction(0.40, {1: holds(m, 0.03 * 8, 0.05), -1: holds(m, -0.03 * 8, 0.05)})
+    assert not trim.f0.why, trim.f0
+    board = _Board()
+    monkeypatch.setattr(friction_trim, "trim_friction", lambda *a: trim)
+    monkeypatch.setattr(friction_trim, "check_rms_mn",
+                        lambda *a: rms_with if board.flashed[-1] == "corrected" else rms_without)
+    said = []
+    prompter = SimpleNamespace(say=said.append)
+    opts = flow.Options(out=str(path))
+    outcome = SimpleNamespace(sections={"friction": {"friction_n": 0.40}}, data={"friction_n": 0.40}, lines=[])
+    identified = read_calibration(path)["force"]
+    flow._trim_friction(board, None, prompter, opts, outcome, path, None)
+    return read_calibration(path), identified, board.flashed, said
+
+
+def test_a_correction_the_check_finds_worse_is_not_kept(tmp_path, monkeypatch):
+    doc, identified, flashed, said = _trim_and_check(tmp_path, monkeypatch, rms_with=190.0, rms_without=110.0)
+    # the corrected F0 was tried, then the identified one, and that one stays: in the file and on the board
+    assert flashed == ["corrected", "identified"], flashed
+    assert doc["force"]["fixed"] == identified["fixed"] and doc["friction"]["friction_n"] != 0.40
+    assert any("F0 correction checked in closed loop and NOT kept" in s and "190 mN with it, 110 mN without" in s
+               for s in said), said
+
+
+def test_a_correction_the_check_finds_better_is_kept(tmp_path, monkeypatch):
+    doc, identified, flashed, said = _trim_and_check(tmp_path, monkeypatch, rms_with=40.0, rms_without=110.0)
+    assert flashed == ["corrected", "identified", "corrected"], flashed  # the corrected one flashed again, last
+    assert doc["force"]["fit"]["correction_mn"] and doc["force"]["fixed"] != identified["fixed"]
+    assert doc["force_inverse"]["knots_out"] == doc["force"]["knots_in"]
+    assert any("F0 correction checked in closed loop and kept" in s for s in said), said
