@@ -4,6 +4,7 @@ whether lsea-kit firmware answers there."""
 import json
 
 from host.link import ports as port_list
+from host.link.port_advice import advice
 from host.link.ports import label
 
 
@@ -35,7 +36,7 @@ def run(args):
         print(json.dumps(rows, indent=1))
         return 0
     if not ports:
-        print("no serial ports (plug the board in; or use --port sim)")
+        print(advice("no ports", None))
         return 0
     for device, vid, pid, desc in ports:
         ids = "%04x:%04x" % (vid, pid) if isinstance(vid, int) and isinstance(pid, int) else "-"

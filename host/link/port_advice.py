@@ -41,8 +41,9 @@ def problem_of(error_text):
 
 
 def advice(problem, port, platform=None):
-    """The one-line message for `problem` ("missing", "denied", "busy", or "none found": no board
-    among the machine's ports, `port` then names the ports seen) on `port`, in `platform`'s words."""
+    """The one-line message for `problem` ("missing", "denied", "busy", "none found": no board
+    among the machine's ports, `port` then names the ports seen, or "no ports": the machine has
+    none, `port` unused) on `port`, in `platform`'s words."""
     family = _family(platform)
     if problem == "denied" and family == "win32":
         problem = "busy"  # Windows denies a port that another program has open, not a user
@@ -71,6 +72,10 @@ def advice(problem, port, platform=None):
         return ("no board found (serial ports: %s): plug it in, or name it with --port (e.g. %s); for a virtual board "
                 "start `host sim` in another terminal, or use --port sim (one for this command only)"
                 % (port, example_port(family)))
+    if problem == "no ports":
+        if family == "win32":
+            return "no serial ports (plug the board in: the Device Manager shows its COM port under Ports (COM & LPT))"
+        return "no serial ports (plug the board in; or start `host sim` for a virtual board, or use --port sim)"
     raise ValueError("no advice for %r" % problem)
 
 

@@ -144,6 +144,25 @@ def test_no_board_found_names_a_port_as_its_platform_does(platform, example):
     assert ("host sim" in said) == (platform != "win32"), said  # a virtual board needs a pseudo-terminal
 
 
+@pytest.mark.parametrize("platform", ["linux", "darwin", "win32"])
+def test_a_machine_with_no_serial_ports_is_told_what_works_on_its_platform(platform):
+    from host.link.port_advice import advice
+
+    said = advice("no ports", None, platform)
+    assert said.startswith("no serial ports (plug the board in"), said
+    assert ("host sim" in said and "--port sim" in said) == (platform != "win32"), said
+    assert ("Device Manager" in said) == (platform == "win32"), said
+
+
+def test_host_ports_with_no_ports_says_so(monkeypatch, capsys):
+    from host import cli
+    from host.link import ports
+
+    monkeypatch.setattr(ports, "list_ports", lambda: [])
+    assert cli.main(["ports"]) == 0
+    assert capsys.readouterr().out.startswith("no serial ports (plug the board in")
+
+
 def test_a_port_held_by_another_program_is_busy_on_this_machine():
     """A real pyserial refusal here: a port (a pseudo-terminal) held open exclusively, as Thonny
     or another host command would hold a board's port, is reported busy with this platform's advice."""
