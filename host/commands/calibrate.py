@@ -4,6 +4,7 @@ from pathlib import Path
 
 from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.errors import UserError
+from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
 
@@ -61,8 +62,8 @@ def add_method_arguments(p):
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
-    p.add_argument("--budget", type=ranged(int, 4, 4096), default=32, help="--model auto: most numbers a pot curve may store "
-                   "(default 32: a table of up to 17 knots)")
+    p.add_argument("--budget", type=ranged(int, 4, 4096), default=DEFAULT_BUDGET, help="--model auto: most numbers a pot curve may store "
+                   "(default %d: a table of up to %d knots)" % (DEFAULT_BUDGET, DEFAULT_BUDGET // 2 + 1))
     p.add_argument("--df-order", default="auto", help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
                    "cross-validation finds a higher order more than 5 %% better")
     p.add_argument("--force-order", default="auto", help="F0(d) and d(F0) order 1-5, or auto (default, cross-validation); "

@@ -6,6 +6,7 @@ import time
 
 from host.commands._options import ranged
 from host.errors import UserError
+from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.fitting.pot_fit import RMS_REFUSE, fit_sweep, poor_fit, refusals
 from host.terminal import note
@@ -34,7 +35,7 @@ def add_parser(subparsers):
     p.add_argument("--bounds", choices=("data", "paper"), default=None,
                    help="with --model bcm: the search box, data (default: handles in the reference range +-10%%, "
                    "w0=1, weight ratios 1/60..60) or paper (handles in [0, 60], weights in [1, 60])")
-    p.add_argument("--budget", type=ranged(int, 4, 4096), default=12, help="auto: most numbers the chosen model may store (default 12)")
+    p.add_argument("--budget", type=ranged(int, 4, 4096), default=DEFAULT_BUDGET, help="auto: most numbers the chosen model may store (default %d, as host calibrate)" % DEFAULT_BUDGET)
     p.add_argument("--out", metavar="CALIB.json", help="write (or update) this pot's section of the calibration file")
     p.add_argument("--pot", choices=("pot1", "pot2"), default="pot1", help="which pot --out writes (default pot1)")
     p.add_argument("--pot-id", metavar="ID",

@@ -14,7 +14,7 @@ rate of BIAS_ALPHA over all bins (Bonferroni): with 10-30 samples a bin's scatte
 uncertain, and a fixed 3.5 refused good curves 8-25 % of the time on pure noise. The RMS alone hides a knee the curve cuts: on a pot with 5 LSB of noise a table 44 um
 off over a whole millimetre passed at 3 % above the floor, and that error went on into Df and
 the position loop. If none gets there, take the most accurate candidate within the parameter
-budget (default 12 numbers) or, among those within PLATEAU (2 %) of its RMS and without a local
+budget (DEFAULT_BUDGET numbers) or, among those within PLATEAU (2 %) of its RMS and without a local
 bias, the cheapest, and say so.
 """
 
@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 from host.fitting.models import fit_model
 
 BCM_DEGREES = (1, 2, 3)  # what firmware/bcm_fixed.bcm3 can evaluate (after degree elevation)
-DEFAULT_BUDGET = 12
+DEFAULT_BUDGET = 32  # numbers a pot curve may store: a table of up to 17 knots, what a knee-shaped pot needs
 DEFAULT_TOLERANCE = 0.10
 BIAS_BINS = 60  # about 1 mm each over a 60 mm stroke
 BIAS_ALPHA = 0.03  # chance that pure noise fails the bias check somewhere in its BIAS_BINS bins

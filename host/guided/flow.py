@@ -24,6 +24,7 @@ from pathlib import Path
 
 from host.calibration.file import POT_SECTIONS, new_document, read_calibration, update_section, write_calibration
 from host.errors import UserError
+from host.fitting.model_select import DEFAULT_BUDGET
 from host.guided.checks import Limits
 
 STEPS = ("pots", "assembly", "force")
@@ -42,9 +43,9 @@ class Options:
     reference: str = "adc"  # or "manual"
     ref_scale: tuple = None
     manual_points: int = 12
-    model: str = "bcm"
+    model: str = "auto"  # as host calibrate's --model
     order: int = None
-    budget: int = None  # --model auto: most numbers a pot curve may store
+    budget: int = DEFAULT_BUDGET  # --model auto: most numbers a pot curve may store
     duty: int = 1500
     df_order: object = "auto"
     force_order: object = "auto"
