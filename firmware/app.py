@@ -18,7 +18,7 @@ from firmware.measurement import STROKE_CLAMP_UM, Measurement, board_problem
 from firmware.motor import Motor
 from firmware.portable import release
 from firmware.pi_control import DUTY_MAX
-from firmware.protocol import MODES, PARAMS, PROTOCOL_VERSION, VERSION
+from firmware.protocol import MODES, PARAMS, PROTOCOL_VERSION, VERSION, interface_hash
 from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
 from firmware.sampler import Sampler
 from firmware import saved_params
@@ -173,6 +173,7 @@ class App:
         self.exit_path = exit_path
         self.last_exit = _read_exit(exit_path)  # why the previous run() ended (this boot's or the last)
         self.interpreter, self.mpy = _interpreter()
+        self.interface = interface_hash()  # once, at boot: the table's text is a kilobyte of heap
         # the modules only the boot needed: on a board their code goes back to the heap
         release("firmware.board_config")
         release("firmware.calibration")
@@ -233,6 +234,7 @@ class App:
             "mpy": self.mpy,
             "last_exit": self.last_exit,
             "protocol": PROTOCOL_VERSION,
+            "interface": self.interface,
         }
 
     def heartbeat(self):

@@ -172,7 +172,8 @@ class Link:
     def hello(self):
         """Announce the firmware once at start (lets a host see a reboot happen)."""
         status = self.app.status()
-        info = {"version": status["version"], "board": status["board"], "protocol": status["protocol"]}
+        info = {"version": status["version"], "board": status["board"], "protocol": status["protocol"],
+                "interface": status["interface"]}
         self.write(P.encode_frame(P.T_HELLO, 0, json.dumps(info).encode()))
 
     # -- telemetry ---------------------------------------------------------------------

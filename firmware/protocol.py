@@ -128,6 +128,33 @@ def crc32(data):
     return binascii.crc32(data) & 0xFFFFFFFF
 
 
+def interface_text():
+    """This table as one line of text, the same on every interpreter: what the board and the host
+    must agree on (the frame layout, the telemetry record, the modes, faults, commands and
+    parameters). Built from ints and strings only, so CPython and MicroPython write it alike."""
+    from firmware.safety import FAULT_NAMES
+
+    def words(items):
+        return ",".join(str(x) for x in items)
+
+    parts = ["v%d" % PROTOCOL_VERSION, words((SYNC_WORD, HEADER_BYTES, CRC_BYTES, MAX_PAYLOAD, SEQ_MASK, MAX_LINE,
+                                              TELEMETRY_BATCH, INT_LIMIT, RECORD_WORDS)),
+             words(FIELDS), words(MODES), words("%d=%s" % t for t in FRAME_TYPES),
+             words("%d=%s" % t for t in FAULT_NAMES)]
+    for name, args, method, after in COMMANDS:
+        parts.append("%s(%s)" % (name, words("%s:%s=%s" % (a[0], a[1] if a[1] == INT else "|".join(a[1]), a[2])
+                                              for a in args)))
+    for row in PARAMS:
+        parts.append(words(row))
+    return ";".join(parts)
+
+
+def interface_hash():
+    """The CRC32 of interface_text, as 8 hex digits: `hello` and `status` carry it, and the host
+    refuses a board whose table is not its own (a firmware from another checkout) in one line."""
+    return "%08x" % crc32(interface_text().encode())
+
+
 def _token_problem(token):
     """Why `token` cannot be one word of a command line, or None when it can."""
     if not token:

@@ -100,6 +100,9 @@ class BoardClient:
                 )
         if status.get("protocol") != P.PROTOCOL_VERSION:
             raise UserError("board speaks protocol %s, this host %s: reflash (host flash)" % (status.get("protocol"), P.PROTOCOL_VERSION))
+        if status.get("interface") != P.interface_hash():
+            raise UserError("board's interface table %s is not this host's %s (firmware from another version of lsea-kit): "
+                            "reflash (host flash --port %s)" % (status.get("interface"), P.interface_hash(), self.port))
         want = P.VERSION
         if status.get("version") != want:
             raise UserError("board runs firmware %s, this host expects %s: reflash (host flash --port %s)" % (status.get("version"), want, self.port))

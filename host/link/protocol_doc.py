@@ -17,7 +17,8 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 COMMAND_TEXT = {
     "status": ("object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
                "step_us_max, overruns, period_us, stroke_um, end_stops_um, params_changed, params_saved, "
-               "params_file_error, params_restored, params_temporary, timer, interpreter, mpy, last_exit, protocol",
+               "params_file_error, params_restored, params_temporary, timer, interpreter, mpy, last_exit, protocol, "
+               "interface",
                "identify the firmware and report its state (the handshake)"),
     "stop": ("null", "motor off, mode idle"),
     "mode": ("null", "switch mode"),
@@ -38,7 +39,9 @@ FRAME_TEXT = {
     "error": "UTF-8 text: why the command was refused or failed",
     "telemetry": "int32 `dropped` (records the board's ring overwrote before they were sent, cumulative), then "
                  "`count` records of %d int32 each, fields in the order of FIELDS" % P.RECORD_WORDS,
-    "hello": "UTF-8 JSON object sent once when the firmware starts: version, board, protocol",
+    "hello": "UTF-8 JSON object sent once when the firmware starts: version, board, protocol, interface (the CRC32 of "
+             "the interface table, protocol.interface_text, as 8 hex digits; the host refuses a board whose table is "
+             "not its own)",
 }
 
 

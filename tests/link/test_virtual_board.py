@@ -41,6 +41,8 @@ def test_status_handshake_over_the_pty(vboard):
     with BoardClient(vboard.path) as board:
         status = board.status_info
         assert status["version"] == VERSION and status["board"] == "sim" and status["protocol"] == P.PROTOCOL_VERSION
+        # the interface table's hash, computed by the real MicroPython, is CPython's
+        assert status["interface"] == P.interface_hash()
         assert status["mode"] == "idle"
         from firmware.protocol import PARAMS
 
@@ -262,6 +264,26 @@ def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
         with pytest.raises(UserError, match="board runs firmware 0.0.0-old, this host expects"):
             BoardClient(old.path)
 
+
+
+def test_a_board_whose_interface_table_differs_is_refused_in_one_line(tmp_path):
+    """Same version, same protocol number, one parameter's default changed in the board's copy of
+    the table (a firmware from another checkout): the host names both hashes and says reflash."""
+    from host.link.virtual_board import DEFAULT_BOARD, install_factory
+
+    root = tmp_path / "flash"
+    root.mkdir()
+    install_factory(root, DEFAULT_BOARD)
+    protocol = root / "firmware" / "protocol.py"
+    text = protocol.read_text()
+    assert '("slew", 500, 0, DUTY_MAX' in text
+    protocol.write_text(text.replace('("slew", 500, 0, DUTY_MAX', '("slew", 400, 0, DUTY_MAX'))
+    with VirtualBoard(root=root, factory=False) as other:
+        with pytest.raises(UserError) as refused:
+            BoardClient(other.path)
+    message = str(refused.value)
+    assert "\n" not in message and P.interface_hash() in message and "reflash (host flash --port" in message, message
+    assert message.startswith("board's interface table ") and "is not this host's" in message, message
 
 
 def test_mpremote_reset_boots_the_firmware_like_a_hard_reset(vboard):
