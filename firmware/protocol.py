@@ -34,7 +34,8 @@ SYNC = b"\xa5\x5a"
 # taking the silence for a board without our firmware
 BOOTING = "lsea-kit booting"
 SYNC_WORD = 0x5AA5  # the two sync bytes read as the low half of little-endian word 0
-HEADER_BYTES = 12
+HEADER_FORMAT = "<BBBBII"  # word 0's four bytes (sync 0xA5 0x5A, type, count), the payload length, the sequence
+HEADER_BYTES = 12  # struct.calcsize(HEADER_FORMAT)
 CRC_BYTES = 4
 MAX_PAYLOAD = 1024  # bounds how long a corrupted length field can hold up the decoder
 SEQ_MASK = 0xFFFF
@@ -281,7 +282,7 @@ def encode_frame(ftype, seq, payload=b"", count=0):
     n = len(payload)
     if n > MAX_PAYLOAD:
         raise ValueError("payload too long")
-    head = struct.pack("<BBBBII", 0xA5, 0x5A, ftype, count, n, seq & SEQ_MASK)
+    head = struct.pack(HEADER_FORMAT, SYNC[0], SYNC[1], ftype, count, n, seq & SEQ_MASK)
     body = head + payload + bytes(padded(n) - n)
     return body + struct.pack("<I", crc32(body))
 

@@ -18,7 +18,7 @@ import struct
 from firmware import protocol as P
 from host.link.frames import frame_valid_header
 
-_HEADER = struct.Struct("<BBBBII")
+_HEADER = struct.Struct(P.HEADER_FORMAT)
 _SYNC0 = P.SYNC[0]
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from firmware import protocol as P
 
-_HEADER = struct.Struct("<BBBBII")
+_HEADER = struct.Struct(P.HEADER_FORMAT)
 _CRC = struct.Struct("<I")
 _KNOWN_TYPES = frozenset(P.TYPE_NAMES)
 _RECORD_BYTES = 4 * P.RECORD_WORDS
@@ -81,6 +81,7 @@ class FrameDecoder:
         sync = P.SYNC
         tel = P.T_TELEMETRY
         batch = P.TELEMETRY_BATCH
+        hb = _HEADER.size  # P.HEADER_BYTES
         skipped = 0
         last = self._last_tseq
         lost = tel_frames = records = 0
@@ -90,26 +91,26 @@ class FrameDecoder:
             while True:
                 i = find(sync, pos)
                 if i < 0:
-                    keep = end - 1 if end > pos and buf[end - 1] == 0xA5 else end
+                    keep = end - 1 if end > pos and buf[end - 1] == P.SYNC[0] else end
                     skipped += keep - pos
                     pos = keep
                     break
                 if i > pos:
                     skipped += i - pos
                     pos = i
-                if end - i < 12:
+                if end - i < hb:
                     break
                 _, _, ftype, count, length, seq = unpack_header(buf, i)
                 # Telemetry is the common case: check its header inline, others in a function.
                 if ftype == tel:
-                    ok = 1 <= count <= batch and length == 4 + count * _RECORD_BYTES and seq <= 0xFFFF
+                    ok = 1 <= count <= batch and length == 4 + count * _RECORD_BYTES and seq <= P.SEQ_MASK
                 else:
                     ok = frame_valid_header(ftype, count, length, seq)
                 if not ok:
                     skipped += 1
                     pos = i + 1
                     continue
-                body = 12 + ((length + 3) & ~3)
+                body = hb + ((length + 3) & ~3)
                 if end - i < body + 4:
                     if not final:
                         break
@@ -121,14 +122,14 @@ class FrameDecoder:
                     skipped += 1
                     pos = i + 1
                     continue
-                append(Frame(ftype, seq, count, bytes(view[i + 12 : i + 12 + length])))
+                append(Frame(ftype, seq, count, bytes(view[i + hb : i + hb + length])))
                 pos = i + body + 4
                 if ftype == tel:
                     tel_frames += 1
                     records += count
-                    dropped = unpack_word(buf, i + 12)[0]
+                    dropped = unpack_word(buf, i + hb)[0]
                     if last is not None:
-                        lost += (seq - last - 1) & 0xFFFF
+                        lost += (seq - last - 1) & P.SEQ_MASK
                     last = seq
                 elif ftype == P.T_HELLO:
                     last = None  # the board restarted: its telemetry numbering starts over

@@ -234,3 +234,9 @@ def test_parse_command_only_raises_protocol_error(line):
         assert -1 <= seq <= P.SEQ_MASK and isinstance(message, str)
     else:
         assert name in P.COMMAND_NAMES
+
+
+def test_the_frame_header_format_is_its_declared_size():
+    import struct
+
+    assert struct.calcsize(P.HEADER_FORMAT) == P.HEADER_BYTES
