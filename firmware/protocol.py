@@ -153,7 +153,7 @@ def interface_text():
 def interface_hash():
     """The CRC32 of interface_text, as 8 hex digits: `hello` and `status` carry it, and the host
     refuses a board whose table is not its own (a firmware from another checkout) in one line."""
-    return "%08x" % crc32(interface_text().encode())
+    return "%08x" % binascii.crc32(interface_text().encode())  # unsigned on both interpreters; at boot, not in the step
 
 
 def _token_problem(token):
