@@ -52,16 +52,11 @@ LENGTH = const(21)
 _M19 = const(524288)  # 2**19: a mantissa at or above it is halved
 _M18 = const(262144)  # 2**18: 1.0 as a mantissa with exponent 18
 _R17 = const(131072)  # 2**17: rounding offset of a mantissa product
-_B29 = const(536870912)  # 2**29 and 2**30 - 1: the sign fix of a word that may be negative
+_B29 = const(536870912)  # [sign-fix] 2**29 and 2**30 - 1 (docs/firmware.md, Viper idioms)
 _M30 = const(1073741823)
 
 
-# viper: machine-word integers, ~7x fewer instructions than @native on a Cortex-M0 (bench_mcu).
-# Every intermediate stays within +-2**30, so the 32-bit words of a board and the 64-bit words
-# of the unix port give the same bits. A ptr32 load is sign-extended on a 32-bit board but
-# zero-extended on a 64-bit one, so a word that may be negative (handles, exponents; all within
-# [-2**29, 2**29)) goes through ((v + 2**29) & (2**30 - 1)) - 2**29, the identity on that range
-# wherever the load came from.
+# [viper-bits] and [sign-fix] (docs/firmware.md, Viper idioms): handles and exponents may be negative.
 @micropython.viper
 def bcm3(code: int, kk) -> int:
     """Position in um of ADC `code` for the exported BCM-3 constants `kk` (layout above)."""

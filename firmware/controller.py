@@ -16,7 +16,7 @@ late, or ran for a whole period) are in status().
 from array import array
 
 from firmware.pi_control import PI
-from firmware.portable import const, ptr32, ticks_us, zeros
+from firmware.portable import const, ptr32, ticks_us, word_property, zeros
 from firmware.protocol import PARAMS
 from firmware.safety import FAULT_STEP_EXCEPTION
 
@@ -50,15 +50,11 @@ P_STOP_MARGIN = const(14)
 P_POS_DEADBAND = const(15)
 _MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
 
-# Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
-# unix port, so a word that may be negative is read as ((v + 2**29) & (2**30 - 1)) - 2**29, the
-# identity for every value in [-2**29, 2**29) wherever the load came from (all of ours are).
+# [sign-fix] (docs/firmware.md, Viper idioms): a word that may be negative is read as ((v + _B29) & _M30) - _B29
 _B29 = const(536870912)
 _M30 = const(1073741823)
 
-# What the step uses of the other modules, as compile-time constants: an imported name is a
-# run-time global, which viper code cannot use as a machine int. tests/firmware/test_copied_constants.py
-# checks every one against the module it copies.
+# [copied-constants] (docs/firmware.md, Viper idioms): what the step uses of the other modules.
 _DUTY_MAX = const(10000)  # pi_control.DUTY_MAX
 _S_RAW1 = const(0)  # sampler.RAW1 ...
 _S_RAW2 = const(1)
@@ -116,18 +112,6 @@ _R_MODE = const(10)
 _R_FAULTS = const(11)
 
 
-def _field(i):
-    """A property over word i of the controller's block."""
-
-    def get(self):
-        return self.st[i]
-
-    def put(self, v):
-        self.st[i] = v
-
-    return property(get, put)
-
-
 class Controller:
     def __init__(self, sampler, measurement, motor, ring, safety, loop_hz):
         self.st = zeros(WORDS)
@@ -159,16 +143,16 @@ class Controller:
         self.apply_params()
 
     # --- the block's fields, for the main loop, people and tests -----------------------------
-    mode = _field(MODE)
-    target = _field(TARGET)
-    duty = _field(DUTY)
-    t_us = _field(T_US)
-    steps = _field(STEPS)
-    fdir = _field(FDIR)
-    defl_sp = _field(DEFL_SP)
-    period_us = _field(PERIOD)
-    step_us_max = _field(STEP_US_MAX)
-    overruns = _field(OVERRUNS)
+    mode = word_property(MODE, True)
+    target = word_property(TARGET, True)
+    duty = word_property(DUTY, True)
+    t_us = word_property(T_US, True)
+    steps = word_property(STEPS, True)
+    fdir = word_property(FDIR, True)
+    defl_sp = word_property(DEFL_SP, True)
+    period_us = word_property(PERIOD, True)
+    step_us_max = word_property(STEP_US_MAX, True)
+    overruns = word_property(OVERRUNS, True)
 
     @property
     def meas(self):

@@ -26,7 +26,7 @@ from firmware.bcm_fixed import bcm3
 from firmware.poly_fixed import poly
 from array import array
 
-from firmware.portable import const, ptr16, ptr32, zeros
+from firmware.portable import const, ptr16, ptr32, word_property, zeros
 from firmware.pwl_fixed import FORCE_PWL_OFFSET, df_table_input, pwl
 
 try:
@@ -35,12 +35,10 @@ except ImportError:  # CPython
     from firmware import portable as micropython
 
 STROKE_CLAMP_UM = const(65535)
-_DF_PWL_OFFSET = const(32768)  # pwl_fixed.DF_PWL_OFFSET, as a constant viper code can use (checked by a test)
+_DF_PWL_OFFSET = const(32768)  # [copied-constants] pwl_fixed.DF_PWL_OFFSET
 FORCE_CLAMP_MN = const(1000000)
 
-# Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
-# unix port, so a word that may be negative is read as ((v + 2**29) & (2**30 - 1)) - 2**29, the
-# identity for every value in [-2**29, 2**29) wherever the load came from (all of ours are).
+# [sign-fix] (docs/firmware.md, Viper idioms): a word that may be negative is read as ((v + _B29) & _M30) - _B29
 _B29 = const(536870912)
 _M30 = const(1073741823)
 
@@ -203,37 +201,14 @@ class Measurement:
             d1 = _clamp_um(d1 - self.df_eval(df_table_input(d1) if self.df_table else d1, self.k_df))
         return d1
 
-    @property
-    def d1(self):
-        return self.st[D1]
-
-    @property
-    def d2(self):
-        return self.st[D2]
-
-    @property
-    def defl(self):
-        return self.st[DEFL]
-
-    @property
-    def force(self):
-        return self.st[FORCE]
-
-    @property
-    def dir(self):
-        return self.st[DIR]
-
-    @property
-    def fric(self):
-        return self.st[FRIC]
-
-    @property
-    def fs32(self):
-        return self.st[FS32]
-
-    @property
-    def out32(self):
-        return self.st[OUT32]
+    d1 = word_property(D1)
+    d2 = word_property(D2)
+    defl = word_property(DEFL)
+    force = word_property(FORCE)
+    dir = word_property(DIR)
+    fric = word_property(FRIC)
+    fs32 = word_property(FS32)
+    out32 = word_property(OUT32)
 
     def missing_for(self, mode_name):
         """None when `mode_name` can run with this calibration, else the reason it cannot."""

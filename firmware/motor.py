@@ -10,7 +10,7 @@ motor is wired the other way).
 """
 
 from firmware import hal
-from firmware.portable import const, ptr32, zeros
+from firmware.portable import const, ptr32, word_property, zeros
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -57,17 +57,9 @@ class Motor:
             raise ValueError("unknown driver %r (two_pwm or pwm_dir)" % board["driver"])
         self.off()
 
-    @property
-    def duty(self):
-        return self.st[DUTY]
-
-    @property
-    def sign(self):
-        return self.st[SIGN]
-
-    @property
-    def kind(self):
-        return self.st[KIND]
+    duty = word_property(DUTY)
+    sign = word_property(SIGN)
+    kind = word_property(KIND)
 
     @micropython.viper
     def set(self, duty: int):

@@ -10,7 +10,7 @@ E_MAX = 32767 and the gains to 0..32767, so |kp * e| <= 32767**2 < 2**30; the P 
 The loop's state is one int32 block, `PI.st`; `integ`, `out` and `saturated` are properties.
 """
 
-from firmware.portable import const, ptr32, zeros
+from firmware.portable import const, ptr32, word_property, zeros
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -22,9 +22,7 @@ E_MAX = const(32767)
 GAIN_MAX = const(32767)
 Q = const(8)
 
-# Sign fix: a viper ptr32 load is sign-extended on a 32-bit board but zero-extended on the 64-bit
-# unix port, so a word that may be negative is read as ((v + 2**29) & (2**30 - 1)) - 2**29, the
-# identity for every value in [-2**29, 2**29) wherever the load came from (all of ours are).
+# [sign-fix] (docs/firmware.md, Viper idioms): a word that may be negative is read as ((v + _B29) & _M30) - _B29
 _B29 = const(536870912)
 _M30 = const(1073741823)
 
@@ -59,17 +57,9 @@ class PI:
     def __init__(self):
         self.st = zeros(3)
 
-    @property
-    def integ(self):
-        return self.st[INTEG]
-
-    @property
-    def out(self):
-        return self.st[OUT]
-
-    @property
-    def saturated(self):
-        return self.st[SAT]
+    integ = word_property(INTEG)
+    out = word_property(OUT)
+    saturated = word_property(SAT)
 
     def reset(self):
         st = self.st

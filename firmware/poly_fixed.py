@@ -34,7 +34,7 @@ try:
 except ImportError:  # CPython: the same decorator must still be valid, as an identity
     from firmware import portable as micropython
 
-_B29 = const(536870912)  # sign fix of a word that may be negative (see firmware/bcm_fixed.py)
+_B29 = const(536870912)  # [sign-fix] (docs/firmware.md, Viper idioms)
 _M30 = const(1073741823)
 
 

@@ -47,6 +47,22 @@ def zeros(n, typecode="i"):
     return a
 
 
+def word_property(i, writable=False):
+    """A property over word `i` of the instance's int32 block `st` (each module keeps its state
+    there, so viper code can reach it through one ptr32), read-only unless `writable`."""
+
+    def get(self):
+        return self.st[i]
+
+    if not writable:
+        return property(get)
+
+    def put(self, v):
+        self.st[i] = v
+
+    return property(get, put)
+
+
 def ptr32(buf):
     """CPython stand-in for viper's ptr32 cast: the buffer's memory as signed 32-bit words.
 

@@ -38,7 +38,7 @@ def df_table_input(d1_um):
     """The input of a Df table for D1 in um (the step inlines the same expression)."""
     return (d1_um >> 1) + DF_PWL_OFFSET
 
-_B29 = const(536870912)  # sign fix of a knot value (see firmware/bcm_fixed.py)
+_B29 = const(536870912)  # [sign-fix] of a knot value (docs/firmware.md, Viper idioms)
 _M30 = const(1073741823)
 
 

@@ -8,7 +8,7 @@ The words the step touches live in one int32 block, `Safety.st` (indices below);
 `last`, `rail_value` and `silence` are properties over it.
 """
 
-from firmware.portable import const, ptr32, zeros
+from firmware.portable import const, ptr32, word_property, zeros
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -53,33 +53,11 @@ class Safety:
         self.exc = None  # the exception object of a step/run failure (kept, not formatted)
         self.timeout_ms = 0
 
-    @property
-    def faults(self):
-        return self.st[FAULTS]
-
-    @property
-    def last(self):
-        return self.st[LAST]
-
-    @property
-    def rail_value(self):
-        return self.st[RAIL_VALUE]
-
-    @rail_value.setter
-    def rail_value(self, v):
-        self.st[RAIL_VALUE] = v
-
-    @property
-    def silence(self):
-        return self.st[SILENCE]
-
-    @silence.setter
-    def silence(self, v):
-        self.st[SILENCE] = v
-
-    @property
-    def silence_limit(self):
-        return self.st[SILENCE_LIMIT]
+    faults = word_property(FAULTS)
+    last = word_property(LAST)
+    rail_value = word_property(RAIL_VALUE, True)
+    silence = word_property(SILENCE, True)
+    silence_limit = word_property(SILENCE_LIMIT)
 
     def set_timeout_ms(self, ms):
         self.timeout_ms = ms
