@@ -18,7 +18,9 @@ import json
 import math
 import os
 import re
+import shutil
 import tempfile
+import time
 from pathlib import Path
 
 from firmware.calibration import (
@@ -136,6 +138,22 @@ def write_calibration(path, doc):
     except OSError:
         pass
     return parse_document(text)[1]
+
+
+def keep_dated_copy(path):
+    """Copy the file at `path` to PATH.YYYYMMDD-HHMMSS.bak beside it before it is replaced: the one
+    way a previous calibration (or board file) is kept. Returns the copy's path, or None when there
+    was no file. Two copies in one second get -2, -3 ... so none overwrites another."""
+    path = Path(path)
+    if not path.is_file():
+        return None
+    stamp = time.strftime("%Y%m%d-%H%M%S")
+    backup, n = path.with_name("%s.%s.bak" % (path.name, stamp)), 1
+    while backup.exists():
+        n += 1
+        backup = path.with_name("%s.%s-%d.bak" % (path.name, stamp, n))
+    shutil.copy2(path, backup)
+    return backup
 
 
 def read_calibration(path):

@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from host.calibration.file import keep_dated_copy
 from host.errors import UserError
 from host.link.flashing import REPO, mpy_cross_executable
 from host.guided import acquire, stroke
@@ -268,8 +269,7 @@ def write_fixed_board(board_path, fixes, out_dir):
     path = Path(out_dir) / ("board-%s.json" % board["name"])
     if Path(board_path).resolve() == path.resolve() or not str(Path(board_path).resolve()).startswith(str(REPO / "boards")):
         path = Path(board_path)  # the user's own board file: corrected in place, the old one kept
-        backup = path.with_name(path.name + ".%s.bak" % time.strftime("%Y%m%d-%H%M%S"))
-        backup.write_text(path.read_text())
+        keep_dated_copy(path)
     tmp = path.with_name(path.name + ".tmp")
     tmp.write_text(json.dumps(board, indent=1) + "\n")
     tmp.replace(path)

@@ -17,12 +17,10 @@ finds stop the run before any sweep (under --yes) or after the person declines t
 
 import json
 
-import shutil
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from host.calibration.file import POT_SECTIONS, new_document, read_calibration, update_section, write_calibration
+from host.calibration.file import POT_SECTIONS, keep_dated_copy, new_document, read_calibration, update_section, write_calibration
 from host.errors import UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.guided.checks import Limits
@@ -206,8 +204,7 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
     def keep_previous():
         if backed_up[0] or not path.exists():
             return
-        backup = path.with_name("%s.%s.bak" % (path.name, time.strftime("%Y%m%d-%H%M%S")))
-        shutil.copy2(path, backup)
+        backup = keep_dated_copy(path)
         backed_up[0] = True
         prompter.say("  kept the previous calibration as %s" % backup)
 

@@ -146,6 +146,18 @@ def test_missing_file_and_bad_order(tmp_path, capsys):
     assert "--order" in capsys.readouterr().err
 
 
+def test_out_onto_an_existing_calibration_keeps_the_previous_one_beside_it(tmp_path, capsys):
+    path = tmp_path / "calib.json"
+    _json(capsys, EXAMPLE, "--model", "bcm", "--out", str(path))
+    before = path.read_bytes()
+    assert list(tmp_path.glob("calib.json.*.bak")) == []  # nothing to keep the first time
+    _json(capsys, EXAMPLE, "--model", "bcm", "--order", "2", "--out", str(path))  # replaces pot1
+    _json(capsys, EXAMPLE, "--model", "bcm", "--order", "1", "--out", str(path))  # twice in one second
+    kept = {k.name: k.read_bytes() for k in tmp_path.glob("calib.json.*.bak")}
+    assert len(kept) == 2 and before in kept.values(), list(kept)
+    assert path.read_bytes() not in kept.values()  # each replaced file kept, the present one not
+
+
 def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
     raw = np.linspace(0.1, 3.2, 40)
     text = "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw)
