@@ -271,8 +271,8 @@ def summary(runs, seed, exact, tmp):
                                      hold_ticks=HOLD, preload=PRELOAD, board_path=board, measured=LOAD["measured"])
 
     def worst(sel):
-        ss = max(abs(l - t) / abs(t) * 100 for t, e, l in rows if sel(t))
-        es = max(abs(e - l) / abs(l) * 100 for t, e, l in rows if sel(t))
+        ss = max(abs(load - t) / abs(t) * 100 for t, _, load in rows if sel(t))
+        es = max(abs(e - load) / abs(load) * 100 for t, e, load in rows if sel(t))
         return ss, es
     ss5, es5 = worst(lambda t: abs(t) == 5000)
     ss, es = worst(lambda t: True)
@@ -301,11 +301,11 @@ def ident(runs, seed, tmp):
     m_exact = Measurement(load_calibration(cal_exact))
     h = m_run.fric
     parts = []
-    for side, sign in SIDES:
+    for side, _sign in SIDES:
         rows = case_force_points_sim(cal_run, side, list(IDENT_DUTIES), anchor=ANCHOR[0], board_path=board)
         res = {"identified": [], "exact": []}
         prev = None
-        for d, load, loading in rows:
+        for d, load, _loading in rows:
             if prev is not None and load != prev:  # the block slid (a stuck block keeps its load)
                 slide = 1 if load > prev else -1
                 for name, m in (("identified", m_run), ("exact", m_exact)):

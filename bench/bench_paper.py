@@ -113,7 +113,7 @@ def main(argv=None):
     for _, title, _, _, out, _ in done:
         report = (REPO / out / "report.md").read_text()
         rel = Path(out).as_posix().rstrip("/")
-        body = re.sub(r"\]\((?!http)([^)]+)\)", lambda m: "](../%s/%s)" % (rel, m.group(1)), report)
+        body = re.sub(r"\]\((?!http)([^)]+)\)", lambda m, rel=rel: "](../%s/%s)" % (rel, m.group(1)), report)
         body = re.sub(r"^## ", "### ", body, flags=re.M)
         body = body.replace("# The paper's experiments, measured on", "## Report (%s), measured on" % title, 1)
         lines.append(body)

@@ -332,7 +332,7 @@ def main(argv=None):
     else:
         seeds = [a.seed * 1000 + i for i in range(a.draws)]
     plan = ([] if (a.no_base or a.only_seed is not None) else [("sim.json", None)]) + [("draw", s) for s in seeds]
-    for kind, seed in plan:
+    for _kind, seed in plan:
         if seed is None:
             path, name = REPO / "boards" / "sim.json", "sim.json"
             actuator, volts, redraws = board["actuator"], board["supply_volts"], 0

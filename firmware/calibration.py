@@ -42,7 +42,7 @@ import binascii
 from firmware.bcm_fixed import invalid as bcm3_invalid
 from firmware.bcm_fixed import bcm3
 from firmware.poly_fixed import invalid as poly_invalid
-from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
+from firmware.pwl_fixed import pwl
 
 FORMAT = "lsea-kit calibration"
 SCHEMA = 2  # what the host writes; schema 1 is read too

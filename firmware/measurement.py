@@ -155,7 +155,7 @@ class Measurement:
         scratch arrays (a board's heap is small). A curve that leaves its window is evaluated
         per step instead."""
         n = self.st[LAST_CODE] + 1
-        conv1, conv2, k1, k2, k_df = self.conv1, self.conv2, self.k1, self.k2, self.k_df
+        conv1, conv2, k1, k2 = self.conv1, self.conv2, self.k1, self.k2
         t1 = t2 = None
         if tabulate:
             t1 = array("H", range(n))  # no throw-away list (portable.zeros)

@@ -142,7 +142,7 @@ def interface_text():
                                               TELEMETRY_BATCH, INT_LIMIT, RECORD_WORDS)),
              words(FIELDS), words(MODES), words("%d=%s" % t for t in FRAME_TYPES),
              words("%d=%s" % t for t in FAULT_NAMES)]
-    for name, args, method, after in COMMANDS:
+    for name, args, _method, _after in COMMANDS:
         parts.append("%s(%s)" % (name, words("%s:%s=%s" % (a[0], a[1] if a[1] == INT else "|".join(a[1]), a[2])
                                               for a in args)))
     for row in PARAMS:

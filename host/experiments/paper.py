@@ -14,7 +14,7 @@ from pathlib import Path
 
 from host.experiments import displacement, force_runs, held_out, model_compare, report, variants
 from host.guided import stroke
-from host.guided.flow import BRINGUP, STEPS, follow_the_actuator, run_steps
+from host.guided.flow import BRINGUP, STEPS, run_steps
 from host.guided.force_calibration import gauge_sides
 from host.guided.friction_trim import PRELOAD_N
 

@@ -5,7 +5,6 @@ person can answer (typed readings) with a one-line UserError, so `--yes` never h
 Answering "a" (or end of input, Ctrl-D) to any question aborts the whole calibration.
 """
 
-import sys
 
 from host.terminal import end_progress, progress_line  # noqa: F401  (the guided steps' progress)
 

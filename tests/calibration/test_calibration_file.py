@@ -173,7 +173,7 @@ def test_the_file_is_readable_json_and_schema_1_files_are_still_read(tmp_path):
     text = path.read_text()
     whole = json.loads(text)
     assert whole["schema"] == 2 and whole["payload"]["pot1"]["fixed"] == doc["pot1"]["fixed"]
-    assert len(text.splitlines()) > 20 and max(len(l) for l in text.splitlines() if '"fixed"' not in l) < 200
+    assert len(text.splitlines()) > 20 and max(len(line) for line in text.splitlines() if '"fixed"' not in line) < 200
     old = tmp_path / "old.json"
     old.write_text(raw_document(json.loads(json.dumps(dict(full_document(), schema=1)))))
     assert "\n" not in old.read_text().strip()

@@ -29,7 +29,7 @@ def case_imports():
 
     names = []
     for name in MODULES:
-        mod = __import__("firmware." + name)
+        __import__("firmware." + name)
         assert getattr(firmware, name) is not None
         names.append(name)
     return {"modules": names}

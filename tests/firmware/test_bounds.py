@@ -100,7 +100,7 @@ def instrumented():
 def _extreme_params(app):
     from firmware.protocol import PARAMS
 
-    for name, _, lo, hi, _ in PARAMS:
+    for name, _, _lo, hi, _ in PARAMS:
         if name.startswith(("kp_", "ki_", "out_limit", "int_limit", "slew")):
             app.set_param(name, hi)
 

@@ -29,7 +29,7 @@ def _points(springs, friction_n=0.4, noise_n=0.03, top_n=16.0, seed=2):
     d, f, s = [], [], []
     for sign in (-1, 1):
         levels = np.linspace(top_n / 8, top_n, 8)
-        for rounds in range(2):
+        for _round in range(2):
             for load, seq in ((True, levels), (False, levels[::-1][1:])):
                 for level in seq:
                     # s as the force step assigns it (host.guided.force_calibration.force_points):

@@ -89,7 +89,7 @@ def test_the_bias_check_rarely_refuses_pure_noise():
 
     rng = np.random.default_rng(11)
     refused = 0
-    for trial in range(60):
+    for _trial in range(60):
         n = int(rng.choice([720, 900, 1800]))  # 12, 15 and 30 samples per bin
         x = np.sort(rng.uniform(0, 4095, n))
         y = x * 60 / 4095 + rng.normal(0, 0.04, n)

@@ -62,8 +62,9 @@ def old_file(tmp_path):
     return path
 
 
-def _steps(monkeypatch, fail_at=None, failure=KeyboardInterrupt()):
+def _steps(monkeypatch, fail_at=None, failure=None):
     sec = _sections()
+    failure = KeyboardInterrupt() if failure is None else failure
 
     def step(name):
         def run(*a, **k):
