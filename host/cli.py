@@ -15,7 +15,7 @@ import sys  # noqa: E402
 import host
 import host.commands
 from host import terminal
-from host.errors import UserError
+from host.errors import UserError, os_error_line
 
 
 class _Parser(argparse.ArgumentParser):
@@ -86,9 +86,8 @@ def _main(argv):
         return 130
     except BrokenPipeError:
         raise  # main() ends a closed pipe quietly
-    except OSError as exc:  # serial.SerialException is one: the board unplugged, the port gone
-        print("error: %s (the board stopped answering or was unplugged?)" % (str(exc).strip() or type(exc).__name__),
-              file=sys.stderr)
+    except OSError as exc:  # a serial port gone (serial.SerialException is one), a full disk, a directory for a file
+        print("error: %s" % os_error_line(exc), file=sys.stderr)
         return 2
 
 

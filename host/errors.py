@@ -9,6 +9,24 @@ class UserError(Exception):
     """An error caused by input or environment, with a message that says what to do."""
 
 
+def os_error_line(exc):
+    """The one line for an OSError that no command turned into a UserError: a serial port's says
+    the board may be gone; one with a file names the file and what the system said (a full disk,
+    a directory where a file was meant, no permission); any other is said as it is."""
+    try:
+        from serial import SerialException
+    except ImportError:  # pragma: no cover (pyserial is a dependency)
+        SerialException = ()
+    import errno
+
+    said = str(exc).strip() or type(exc).__name__
+    if exc.filename is not None:
+        return "%s: %s" % (exc.filename, exc.strerror or said)
+    if isinstance(exc, SerialException) or exc.errno in (errno.EIO, errno.ENXIO, errno.ENODEV):
+        return "%s (the board stopped answering or was unplugged?)" % said  # what a vanished port reads
+    return said
+
+
 def check_user_file(path, what, max_bytes):
     """Refuse, before reading it, a file a person named that cannot be `what` (e.g. "calibration
     file"): missing, a directory, not a regular file (a FIFO or /dev/zero, which never end), or

@@ -141,7 +141,10 @@ class Recording:
 
     def _write(self, frame):
         rows = frame.records()
-        self._writer.writerows(rows.tolist())
+        try:
+            self._writer.writerows(rows.tolist())
+        except OSError as exc:  # a full disk shows here, at a buffer's flush: say which file
+            raise _naming(exc, self.path) from None
         self.summary.samples += len(rows)
         self.summary.board_dropped = frame.dropped()
         if self.on_rows is not None:
@@ -189,7 +192,16 @@ class Recording:
                 self._write(frame)
             self.client.telemetry.clear()
             self._update()
-            self._file.close()
+            try:
+                self._file.close()
+            except OSError as exc:
+                raise _naming(exc, self.path) from None
+
+def _naming(exc, path):
+    """`exc` (an OSError of a write to the log) with the log's path as its filename, so the error
+    line names the file, not only "No space left on device"."""
+    return exc if exc.filename is not None else OSError(exc.errno, exc.strerror or str(exc), str(path))
+
 
 def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1.0):
     """Stream telemetry at `rate` Hz into CSV `path` for `seconds` (None: until Ctrl-C); the

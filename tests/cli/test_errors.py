@@ -34,6 +34,32 @@ def test_a_board_that_disappears_is_one_line(monkeypatch, capsys):
     assert code == 2 and len(err) == 1 and "stopped answering" in err[0], err
 
 
+def test_a_full_disk_names_the_file_and_blames_no_board(tmp_path, capsys):
+    """A log written to a full disk (Linux's /dev/full) is one line naming the file, not "the board
+    stopped answering" (what every OSError used to be called)."""
+    import os
+
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full on this system")
+    code = cli.main(["log", "--port", "sim", "--out", "/dev/full", "--seconds", "0.3"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and err[-1] == "error: /dev/full: No space left on device", err
+
+
+def test_os_errors_are_said_by_what_they_are():
+    import errno
+
+    import serial
+
+    from host.errors import os_error_line
+
+    assert os_error_line(OSError(errno.EISDIR, "Is a directory", "/tmp/out")) == "/tmp/out: Is a directory"
+    full = os_error_line(OSError(errno.ENOSPC, "No space left on device"))
+    assert "No space left" in full and "board" not in full, full
+    for gone in (serial.SerialException("write failed"), OSError(errno.EIO, "Input/output error")):
+        assert os_error_line(gone).endswith("(the board stopped answering or was unplugged?)"), gone
+
+
 @pytest.mark.parametrize("argv,words", [
     # a float literal with an exponent is a value, not an unknown option (argparse's own rule
     # knows only -5 and -0.5), so its range check answers, not "expected one argument"
