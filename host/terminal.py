@@ -1,4 +1,5 @@
-"""Terminal manners: progress on stderr, results on stdout.
+"""Terminal manners: progress and warnings on stderr (--quiet silences progress, never a warning),
+results on stdout.
 
 On a terminal a progress line is rewritten in place (`\\r`); written to a file or a pipe each
 update is a line of its own, at most one a `every` seconds, so a saved log stays readable.
@@ -42,6 +43,13 @@ def note(text):
     """A progress message on a line of its own on stderr (nothing under --quiet)."""
     if not _state["quiet"]:
         print(text, file=sys.stderr, flush=True)
+
+
+def warn(text):
+    """`warning: text` on stderr, on a line of its own: also under --quiet, which silences progress,
+    never what a person must know about the result."""
+    end_progress()
+    print("warning: " + text, file=sys.stderr, flush=True)
 
 
 def end_progress():

@@ -161,9 +161,9 @@ def _stop_log(log, why):
     try:
         log.stop(why)
     except OSError as exc:
-        import sys
+        from host.terminal import warn
 
-        print("warning: could not write the run log %s: %s" % (log.json_path, exc.strerror or exc), file=sys.stderr)
+        warn("could not write the run log %s: %s" % (log.json_path, exc.strerror or exc))
 
 
 def _missing_folders(path):

@@ -9,7 +9,7 @@ from host.errors import UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.fitting.pot_fit import RMS_REFUSE, fit_sweep, poor_fit, refusals
-from host.terminal import note
+from host.terminal import note, warn
 
 
 def add_parser(subparsers):
@@ -119,7 +119,7 @@ def run(args):
         if why and not args.force:
             raise UserError("not writing %s: %s (--force writes it anyway)" % (args.out, "; ".join(why)))
         if poor_fit(result, noise):
-            say("warning: rms %.4g is %.0f times the noise floor: a poor fit (%s)" % (
+            warn("rms %.4g is %.0f times the noise floor: a poor fit (%s)" % (
                 result.rms, result.rms / noise, "a larger --budget allows a longer table" if args.model == "auto"
                 else "try --model auto, the default"))
         bits = args.adc_bits or adc_bits_of(sweep.x)

@@ -4,6 +4,7 @@ from host.commands._options import PORT_HELP, add_uf2_argument, add_load_argumen
 from host.errors import UserError
 from host.link.connect import open_port
 from host.link.flashing import flash
+from host.terminal import note
 
 
 def add_parser(subparsers):
@@ -26,9 +27,7 @@ def add_parser(subparsers):
 
 
 def run(args):
-    def progress(text):
-        print(text, flush=True)
-
+    progress = note  # stderr, silenced by --quiet: stdout carries only the result line
     with open_port(args.port, args.board, load=args.load, factory=False, uf2=args.uf2) as where:
         if where.virtual is not None:  # an empty flash: nothing to ask, the board file is the virtual board's
             status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False,

@@ -1,13 +1,11 @@
 """`host log`: stream telemetry to a CSV file with progress, optionally watched live; Ctrl-C ends
 it with a complete file."""
 
-import sys
-
 from host.api import Board
 from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
 from host.link.live_view import watched
 from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path
-from host.terminal import end_progress, progress_line
+from host.terminal import end_progress, progress_line, warn
 
 
 def add_parser(subparsers):
@@ -36,8 +34,8 @@ def run(args):
                uncalibrated=args.uncalibrated) as board:
         status = board.client.status_info or {}
         if status.get("calibration_crc") is None:
-            print("warning: the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, "
-                  "raw_ref) are logged" % (status.get("calibration_error"), ", ".join(CALIBRATED_FIELDS)), file=sys.stderr)
+            warn("the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, raw_ref) are "
+                 "logged" % (status.get("calibration_error"), ", ".join(CALIBRATED_FIELDS)))
         _, summary, png, kept = watched(board, args.out, args.rate, args.live,
                                         lambda recording: recording.pump(args.seconds, progress), close_stops=True,
                                         keep=args.keep)

@@ -1,10 +1,10 @@
 """`host plot run.csv`: positions, deformation, force, duty and targets of a logged run."""
 
-import sys
 from pathlib import Path
 
 from host.errors import UserError
 from host.link.telemetry_plot import plot
+from host.terminal import warn
 
 
 def add_parser(subparsers):
@@ -21,7 +21,7 @@ def run(args):
     src = Path(args.csv)  # checked where it is read (telemetry_log.load): missing, a pipe, too large
     out = Path(args.out) if args.out else src.with_suffix(".png")
     try:
-        plot(src, out, warn=lambda text: print("warning: " + text, file=sys.stderr))
+        plot(src, out, warn=warn)
     except (ValueError, KeyError) as exc:
         raise UserError("cannot plot %s: %s" % (src, exc))
     print(out)

@@ -6,6 +6,7 @@ import time
 
 from host.commands._options import add_load_argument, add_uf2_argument
 from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard, ready_calibration
+from host.terminal import note
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -50,7 +51,6 @@ def _raise_stopped(signum, frame):
 def _emulated_pico(args):
     from host.link.emulated_pico.board import PICO_BOARD, SIM_BOARD, EmulatedPico
     from host.link.flashing import flash, resolve_board
-    from host.terminal import note
 
     board_path, _ = resolve_board(args.board or str(PICO_BOARD))
     pico = EmulatedPico(uf2=args.uf2, board=board_path, actuator=args.actuator or SIM_BOARD,
@@ -87,7 +87,7 @@ def run(args):
         record = register(path, what, root=getattr(board, "root", None), board=getattr(board, "board_path", None))
         try:
             print(path, flush=True)
-            print("%s running; Ctrl-C to stop" % what, flush=True)
+            note("%s running; Ctrl-C to stop" % what)  # stdout carries only the path, for a script to read
             while True:
                 time.sleep(0.5)
         finally:

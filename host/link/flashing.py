@@ -298,12 +298,13 @@ def identify(port):
             return None
 
 
-def flash(port, board_name="sim", calibration=None, progress=print, replace_board=False, ask_board=True, force=False):
+def flash(port, board_name="sim", calibration=None, progress=None, replace_board=False, ask_board=True, force=False):
     """Install firmware, board file and (optionally) calibration on the board at `port`.
 
     Every file is checked first (check_files) and, unless `replace_board`, the board's own
     firmware is asked what it is: nothing is copied when anything is wrong. `force`: install a
     calibration whose readable fields contradict its tables or name no board."""
+    progress = progress or (lambda text: None)  # a library says nothing unless asked (the command passes terminal.note)
     if "/" in port and not Path(port).exists():
         raise UserError(advice("missing", port))
     running = identify(port) if ask_board else None

@@ -60,3 +60,26 @@ def test_quiet_leaves_only_the_result(tmp_path):
         proc = _host(*args)
         assert proc.returncode == 0 and proc.stderr == "", proc.stderr
         assert proc.stdout.strip().startswith("report: "), proc.stdout
+
+
+def test_quiet_silences_progress_never_a_warning(tmp_path):
+    """A log of a board without calibration warns that the positions will be 0: through --quiet
+    (only progress goes), on stderr, one line; stdout keeps the result."""
+    proc = _host("log", "--port", "sim", "--uncalibrated", "--out", str(tmp_path / "run.csv"), "--seconds", "0.3",
+                 "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stderr.startswith("warning: the board has no usable calibration") and proc.stderr.count("\n") == 1, \
+        proc.stderr
+    assert "warning" not in proc.stdout and "run.csv" in proc.stdout, proc.stdout
+
+
+def test_warn_ends_an_open_progress_line(monkeypatch):
+    tty = FakeTTY()
+    monkeypatch.setattr(sys, "stderr", tty)
+    terminal.set_quiet(True)
+    try:
+        terminal.progress_line("step 1")  # silenced
+        terminal.warn("something to know")
+    finally:
+        terminal.set_quiet(False)
+    assert tty.getvalue() == "warning: something to know\n"

@@ -138,7 +138,7 @@ def start_flash(port, calibration, tmp_dir=None):
     env = dict(os.environ, TMPDIR=str(tmp_dir)) if tmp_dir else None
     return subprocess.Popen(
         [sys.executable, "-u", "-m", "host", "flash", "--port", port, "--calibration", str(calibration)],
-        stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, start_new_session=True, env=env,
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True, env=env,  # progress: stderr
     )
 
 
