@@ -188,16 +188,35 @@ def update_section(path, name, section, board=None, pots=None):
         doc["board"] = board
     if pots:
         doc["pots"] = dict(doc.get("pots") or {}, **pots)
-    if name in POT_SECTIONS:
+    set_section(doc, name, section)
+    doc["date"] = now_iso()
+    write_calibration(path, doc)
+    return doc
+
+
+def set_section(doc, name, section):
+    """Section `name` of payload `doc` set to `section`. A pot section and the document's `pots`
+    entry for it name the same pot: a section without a pot_id takes the one the document
+    records (a refit of the same pot), and one with a pot_id records it."""
+    if name in POT_SECTIONS and section is not None:
         known = (doc.get("pots") or {}).get(name)
         if section.get("pot_id") is None and known is not None:
             section = dict(section, pot_id=known)
         elif section.get("pot_id") is not None:
             doc["pots"] = dict(doc.get("pots") or {}, **{name: section["pot_id"]})
     doc[name] = section
-    doc["date"] = now_iso()
-    write_calibration(path, doc)
-    return doc
+
+
+MEASURED_THROUGH_POTS = ("df", "force", "force_inverse", "friction", "stroke")
+
+
+def for_new_pots(old, board=None):
+    """The document new pot curves start from: `old`'s pot ids and nothing that was measured
+    through its pot curves (Df, the force model, the friction, the end stops). Returns it and the
+    names of those sections `old` had."""
+    doc = new_document(board=board)
+    doc["pots"] = dict((old or {}).get("pots") or {})
+    return doc, [name for name in MEASURED_THROUGH_POTS if (old or {}).get(name)]
 
 
 def write_pot(path, pot, fit, adc_bits, pot_id=None, board=None, rising=True):

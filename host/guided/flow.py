@@ -20,7 +20,8 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from host.calibration.file import POT_SECTIONS, keep_dated_copy, new_document, read_calibration, update_section, write_calibration
+from host.calibration.file import (POT_SECTIONS, for_new_pots, keep_dated_copy, read_calibration, set_section,
+                                   update_section, write_calibration)
 from host.errors import UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.guided.checks import Limits
@@ -248,22 +249,19 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         keep_previous()
         if full and step == "pots":
             # new pot curves: the Df and force sections were measured through the old ones
-            doc = new_document(board=board_name)
             old = {}
             try:
                 old = read_calibration(path) if path.exists() else {}
-                doc["pots"] = dict(old.get("pots") or {})
             except UserError:
                 pass
-            dropped = [n for n in ("df", "force", "force_inverse", "friction") if old.get(n) and n not in outcome.sections]
+            doc, dropped = for_new_pots(old, board=board_name)
+            dropped = [n for n in dropped if n not in outcome.sections]
             if dropped:
                 prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
                              % (", ".join(dropped), path))
             for name, section in outcome.sections.items():
                 if name in POT_SECTIONS:
-                    doc[name] = section
-                    if section.get("pot_id") is not None:
-                        doc["pots"] = dict(doc["pots"], **{name: section["pot_id"]})
+                    set_section(doc, name, section)
             write_calibration(path, doc)
             for name, section in outcome.sections.items():
                 if name not in POT_SECTIONS:
