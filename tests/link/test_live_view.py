@@ -115,7 +115,6 @@ def test_a_kept_window_outlives_the_run_and_the_board_until_released(calibration
     process keeps its window open; release() (a test, or Ctrl-C during wait()) ends it by itself
     (exit status 0, not terminated). Two kept windows: one released from here, one whose wait()
     gets a Ctrl-C as soon as its note is out."""
-    import _thread
     import time
 
     from host import terminal
@@ -141,7 +140,7 @@ def test_a_kept_window_outlives_the_run_and_the_board_until_released(calibration
 
     def note_then_ctrl_c(text):  # Ctrl-C, as a person presses it while the window is up
         said.append(text)
-        _thread.interrupt_main()
+        raise KeyboardInterrupt  # at once, inside the wait: _thread.interrupt_main() may land after it and end pytest
 
     monkeypatch.setattr(terminal, "note", note_then_ctrl_c)
     second.wait()  # returns: Ctrl-C ends the wait as closing the window does
@@ -152,8 +151,6 @@ def test_a_kept_window_outlives_the_run_and_the_board_until_released(calibration
 def test_host_log_live_keep_waits_after_its_report_and_ctrl_c_ends_it(tmp_path, x_display, monkeypatch, capsys):
     """The command's side of --keep: the log is complete, the board let go and the summary printed
     before the one note and the wait; Ctrl-C then ends the command with its usual status."""
-    import _thread
-
     from host import terminal
 
     out = tmp_path / "run.csv"
@@ -162,7 +159,7 @@ def test_host_log_live_keep_waits_after_its_report_and_ctrl_c_ends_it(tmp_path, 
     def note(text):
         if "stays open" in text:  # the wait has begun: what was printed by then, then Ctrl-C
             printed_before.append(capsys.readouterr().out)
-            _thread.interrupt_main()
+            raise KeyboardInterrupt  # at once, inside the wait (an asynchronous one may land after it)
 
     monkeypatch.setattr(terminal, "note", note)
     assert cli.main(["log", "--port", "sim", "--out", str(out), "--seconds", "0.5", "--live", "--keep"]) == 0
