@@ -22,6 +22,17 @@ def start(*args, **kw):
     return subprocess.Popen([sys.executable, "-m", "host", *args], preexec_fn=_terminal_like, start_new_session=True, **kw)
 
 
+def sim_root(proc):
+    """The flash directory of a `host sim` started with stderr=PIPE, from the line that says it
+    runs (on stderr: stdout carries only the device path)."""
+    from pathlib import Path
+
+    for line in proc.stderr:
+        if "(flash in " in line:
+            return Path(line.split("(flash in ")[1].split(")")[0])
+    raise AssertionError("host sim ended without saying where its flash is")
+
+
 def stop(proc, sig=signal.SIGINT, timeout=60):
     """Send `sig`, wait up to `timeout` s; returns (returncode, stdout, stderr) as communicate()
     gives them. If the child is still running then, its group is killed and TimeoutExpired raised."""

@@ -60,10 +60,11 @@ def test_a_running_host_sim_is_listed_and_found_by_port_auto(tmp_path, monkeypat
     from testkit import processes
 
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))  # this test's own records, not another test's
-    proc = processes.start("sim", stdout=subprocess.PIPE, text=True, env=dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path)))
+    proc = processes.start("sim", stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           env=dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path)))
     try:
         path = proc.stdout.readline().strip()
-        proc.stdout.readline()
+        processes.sim_root(proc)  # it says it runs (on stderr) once it is registered
         assert cli.main(["ports", "--json"]) == 0
         rows = json.loads(capsys.readouterr().out)
         assert [r["board"] for r in rows if r["device"] == path] == ["lsea-kit virtual board (host sim)"]
@@ -82,7 +83,6 @@ def test_a_guided_session_on_a_host_sims_pty_mounts_its_rig(tmp_path, monkeypatc
     import json
     import os
     import subprocess
-    from pathlib import Path
 
     from host.guided.prompts import Prompter
     from host.guided.rig import Rig
@@ -90,10 +90,11 @@ def test_a_guided_session_on_a_host_sims_pty_mounts_its_rig(tmp_path, monkeypatc
     from testkit import processes
 
     monkeypatch.setenv("XDG_RUNTIME_DIR", str(tmp_path))
-    proc = processes.start("sim", stdout=subprocess.PIPE, text=True, env=dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path)))
+    proc = processes.start("sim", stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                           env=dict(os.environ, XDG_RUNTIME_DIR=str(tmp_path)))
     try:
         path = proc.stdout.readline().strip()
-        root = Path(proc.stdout.readline().split("(flash in ")[1].split(")")[0])
+        root = processes.sim_root(proc)
         with Session(path, say=lambda *_: None) as session:
             assert session.virtual is not None and session.simulated and session.root == root
             rig = Rig(Prompter(yes=True, out=lambda *_: None), session.virtual)

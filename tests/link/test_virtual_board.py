@@ -326,10 +326,10 @@ def test_host_sim_cleans_up_on_sigterm_and_sighup_as_on_ctrl_c(stop_signal):
     import signal
     from pathlib import Path
 
-    proc = host_processes.start("sim", "--load", "gauge@25", stdout=subprocess.PIPE, text=True)
+    proc = host_processes.start("sim", "--load", "gauge@25", stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
         path = proc.stdout.readline().strip()
-        root = proc.stdout.readline().split("(flash in ")[1].split(")")[0]
+        root = str(host_processes.sim_root(proc))
         assert path.startswith("/dev/pts/") and Path(root).name.startswith("lsea-vboard-")
         assert json.loads((Path(root) / "rig.json").read_text())["load"] == {"kind": "gauge", "side": "high", "anchor_mm": 25.0}
         with BoardClient(path) as board:
