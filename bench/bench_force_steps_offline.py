@@ -64,6 +64,7 @@ sys.path.insert(0, ROOT)
 TARGETS = (5000, 10000, 15000, 10000, 5000)
 SETTLE, HOLD, PRELOAD = 1500, 500, 500
 ANCHOR = [45000]  # um, the gauge anchor (--anchor: another realisation of the same board)
+GAUGE = {"at": False}  # --at-gauge: anchors are offsets from each board's own gauge anchor, where --trim holds too
 SIDES = (("high", -1), ("low", 1))
 
 
@@ -92,7 +93,8 @@ def exact_calibration(board_path, out_path):
     kg = float(board["actuator"]["gauge"]["stiffness_n_per_mm"])
     dt = np.unique(np.concatenate([np.linspace(-2.0, 2.0, 81), [-w.d_release, w.d_release]]))
     f = np.array([w.spring_force(v) for v in dt])
-    keep = np.abs(f) <= 24.0
+    # within 24 N, and no two points in the same um (a knot next to the release point's)
+    keep = (np.abs(f) <= 24.0) & np.concatenate([[True], np.diff(dt) > 0.002])
     dt, f = dt[keep], f[keep]
     x2 = ANCHOR[0] / 1000.0 + f / kg
     x1 = x2 + dt
@@ -138,10 +140,10 @@ REFIT_LEVEL, REFIT_MAX_DUTY, REFIT_RANGE_MN = 625, 9000, 16000
 REFIT_ANCHOR = 45000  # where the run identified F0 (--anchor-mm 45); the steps may then go elsewhere
 
 
-def refit_calibration(board, cal, out_path):
+def refit_calibration(board, cal, out_path, anchor):
     """The run's calibration with its force sections identified again, here and now: the guided
     force step's open-loop points replayed on the board with the run's pots and Df
-    (case_force_points_sim at REFIT_ANCHOR, REFIT_ROUNDS rounds a side, each loading until the gauge
+    (case_force_points_sim at `anchor`, REFIT_ROUNDS rounds a side, each loading until the gauge
     reads 16 N or the spring nears the cavity, each on a freshly started firmware), fitted by the guided step's
     own code (host/guided/force_calibration.py identify and force_sections). What a change to the
     force fit does to the force steps, without a run of the whole chain."""
@@ -155,7 +157,7 @@ def refit_calibration(board, cal, out_path):
     pts = []
     for side, sign in SIDES:
         for _ in range(REFIT_ROUNDS):
-            rows = case_force_points_sim(cal, side, levels, anchor=REFIT_ANCHOR, board_path=board, measured=LOAD["measured"],
+            rows = case_force_points_sim(cal, side, levels, anchor=anchor, board_path=board, measured=LOAD["measured"],
                                          stop_mN=REFIT_RANGE_MN, stop_um=int(CAVITY_NEAR_MM * 1000))
             top = sum(1 for r in rows if r[2])
             duties = levels[:top] + levels[:top - 1][::-1]
@@ -174,10 +176,10 @@ def refit_calibration(board, cal, out_path):
     return out_path
 
 
-TRIM = {"on": False, "f0": True}  # --trim, --no-f0
+TRIM = {"on": False, "f0": True, "fractions": None}  # --trim, --no-f0, --trim-fractions
 
 
-def trimmed_calibration(board, cal, out_path):
+def trimmed_calibration(board, cal, out_path, anchor):
     """The calibration with its friction trimmed in closed loop as the guided step does it after
     the force step (host/guided/friction_trim.py): force-mode holds at the trim's targets for a
     16 N range on both sides, at REFIT_ANCHOR, on a freshly started firmware each side; a
@@ -188,7 +190,7 @@ def trimmed_calibration(board, cal, out_path):
                                            trimmed_friction, trimmed_sections)
 
     doc = read_calibration(cal)
-    trim = trimmed_friction(doc["friction"]["friction_n"], side_holds(cal, board, TRIM_FRACTIONS))
+    trim = trimmed_friction(doc["friction"]["friction_n"], side_holds(cal, board, TRIM["fractions"] or TRIM_FRACTIONS, anchor))
     if not TRIM["f0"]:
         trim.f0.why = "--no-f0"
     sections, lines = trimmed_sections(doc, trim)
@@ -196,7 +198,7 @@ def trimmed_calibration(board, cal, out_path):
         rms = {}
         for name, chosen in (("with", sections), ("without", {"friction": sections["friction"]})):
             write_calibration(out_path, dict(doc, **chosen))
-            rms[name] = rms_error_mn(side_holds(out_path, board, CHECK_FRACTIONS))
+            rms[name] = rms_error_mn(side_holds(out_path, board, CHECK_FRACTIONS, anchor))
         if not keep_correction(rms["with"], rms["without"]):
             sections = {"friction": sections["friction"]}
         lines.append("F0 correction %s: check rms %.0f mN with it, %.0f without" % (
@@ -208,7 +210,7 @@ def trimmed_calibration(board, cal, out_path):
     return out_path
 
 
-def side_holds(cal, board, fractions):
+def side_holds(cal, board, fractions, anchor):
     """Force-mode holds at `fractions` of a 16 N range on both sides, as side_holds in
     host/guided/friction_trim.py gives them: {sign: [(magnitude, estimate, gauge)]} (N)."""
     from host.guided.friction_trim import trim_magnitudes
@@ -217,7 +219,7 @@ def side_holds(cal, board, fractions):
     magnitudes = trim_magnitudes(REFIT_RANGE_MN / 1000.0, fractions)
     sides = {}
     for side, sign in SIDES:
-        rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=REFIT_ANCHOR,
+        rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=anchor,
                                     measured=LOAD["measured"], board_path=board)
         sides[sign] = [(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)]
     return sides
@@ -234,10 +236,10 @@ def calibration(runs, seed, exact, tmp):
         return board, None
     if REFIT["on"]:
         out = os.path.join(tmp, "refit-%s.json" % seed)
-        cal = out if os.path.exists(out) else refit_calibration(board, cal, out)
+        cal = out if os.path.exists(out) else refit_calibration(board, cal, out, ANCHOR[0] if GAUGE["at"] else REFIT_ANCHOR)
     if TRIM["on"]:
         out = os.path.join(tmp, "trim-%s.json" % seed)
-        cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out)
+        cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, ANCHOR[0] if GAUGE["at"] else REFIT_ANCHOR)
     return board, cal
 
 
@@ -256,6 +258,14 @@ def override_params(pairs):
                             for row in protocol.PARAMS)
 
 
+def gauge_anchor_um(runs, seed):
+    """Where the guided calibration hooks the gauge on this seed's board (host/guided/stroke.py)."""
+    from host.guided import stroke
+
+    board = json.load(open(paths(runs, seed)[0]))
+    return round(1000 * stroke.gauge_anchor_mm(stroke.nominal(board, board.get("actuator"))))
+
+
 def summary(runs, seed, exact, tmp):
     """One line for the seed at the present anchor; returns max(ss, est) over all its steps, %,
     or None when skipped."""
@@ -272,7 +282,7 @@ def summary(runs, seed, exact, tmp):
 
     def worst(sel):
         ss = max(abs(load - t) / abs(t) * 100 for t, _, load in rows if sel(t))
-        es = max(abs(e - load) / abs(load) * 100 for t, e, load in rows if sel(t))
+        es = max(abs(e - load) / max(abs(load), 1) * 100 for t, e, load in rows if sel(t))
         return ss, es
     ss5, es5 = worst(lambda t: abs(t) == 5000)
     ss, es = worst(lambda t: True)
@@ -384,10 +394,15 @@ def main():
     ap.add_argument("--trim", action="store_true",
                     help="trim the calibration's friction in closed loop first, as the guided step does after the force step")
     ap.add_argument("--no-f0", action="store_true", help="with --trim: trim h only, leave F0 as identified")
+    ap.add_argument("--trim-fractions", metavar="F,F,...",
+                    help="with --trim: the trim's targets as fractions of the range (default friction_trim.TRIM_FRACTIONS)")
     ap.add_argument("--ident", action="store_true",
                     help="check F0 of both calibrations against a replay of the force identification")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
     ap.add_argument("--anchors", help="several anchors, um, comma-separated (a tally over all cases)")
+    ap.add_argument("--at-gauge", action="store_true",
+                    help="--anchor/--anchors are offsets, um, from each board's own gauge anchor (75 %% along its "
+                         "stroke, where the guided force step and the paper's force runs hook it)")
     ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                     help="diagnostic: a firmware parameter's default replaced (repeatable)")
     ap.add_argument("--oversample", type=int, help="diagnostic: reads per step on every board")
@@ -405,6 +420,9 @@ def main():
     REFIT["on"] = a.refit
     TRIM["on"] = a.trim
     TRIM["f0"] = not a.no_f0
+    if a.trim_fractions:
+        TRIM["fractions"] = tuple(float(v) for v in a.trim_fractions.split(","))
+    GAUGE["at"] = a.at_gauge
     DIAG["oversample"] = a.oversample
     DIAG["noise"] = a.noise
     override_params(a.param)
@@ -425,8 +443,8 @@ def main():
             worst = []
             per_seed = {}
             for anchor in anchors:
-                ANCHOR[0] = anchor
                 for seed in a.seeds:
+                    ANCHOR[0] = anchor + (gauge_anchor_um(a.runs, seed) if a.at_gauge else 0)
                     w = summary(a.runs, seed, a.exact, tmp)
                     if w is not None:
                         worst.append(w)
