@@ -63,18 +63,29 @@ def word_property(i, writable=False):
     return property(get, put)
 
 
-def ptr32(buf):
-    """CPython stand-in for viper's ptr32 cast: the buffer's memory as signed 32-bit words.
+# MicroPython's and CircuitPython's memoryview has no cast(): there the plain path's buffers are
+# already arrays of the width the code reads (int32 blocks, uint16 tables), used as they are.
+_CAST = hasattr(memoryview, "cast")
 
-    Under MicroPython viper resolves `ptr32` itself (this function is never called there). A
-    list (the host's exported constants, possibly of tracked ints) is used as it is."""
-    if isinstance(buf, list):
+
+def ptr32(buf):
+    """Stand-in for viper's ptr32 cast: the buffer's memory as signed 32-bit words.
+
+    Inside viper code MicroPython resolves `ptr32` itself and never calls this. It is called by
+    the same code run as plain bytecode: under CPython (the host and the tests) it casts; on a
+    MicroPython or CircuitPython without viper (the plain path, docs/firmware.md) every buffer
+    handed to it is an int32 array or a view of one, returned as it is. A list (the host's
+    exported constants, possibly of tracked ints) is used as it is everywhere."""
+    if not _CAST or isinstance(buf, list):
         return buf
     return memoryview(buf).cast("B").cast("i")
 
 
 def ptr16(buf):
-    """CPython stand-in for viper's ptr16 cast: the buffer's memory as unsigned 16-bit words."""
+    """Stand-in for viper's ptr16 cast: the buffer's memory as unsigned 16-bit words (the plain
+    path's buffers are uint16 arrays already: see ptr32)."""
+    if not _CAST:
+        return buf
     return memoryview(buf).cast("B").cast("H")
 
 

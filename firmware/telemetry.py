@@ -4,8 +4,10 @@ A record is RECORD_WORDS int32 words, the fields of protocol.FIELDS in that orde
 loop (the link) is the only reader. Writer and reader each own one counter, so no lock is needed
 and nothing is allocated on either side.
 
-The ring's storage is a bytearray (made zeroed, with no throw-away list as large as itself)
-written and read as int32 words by viper code. The counters live in one int32 block, `Ring.st`;
+The ring's storage is an int32 array (made zeroed, with no throw-away list as large as itself)
+written and read as words by viper code, and by the same code as plain bytecode where there is
+no viper (CircuitPython, docs/firmware.md "The plain path"): an array indexes as words there too,
+which a bytearray would not. The counters live in one int32 block, `Ring.st`;
 `head`, `tail`, `dropped` and `every` are properties over it. head and tail count records
 modulo 2**30, stepped without ever forming 2**30, so they stay small ints for any uptime.
 """
@@ -19,7 +21,6 @@ except ImportError:  # CPython
 
 # the record's size: len(protocol.FIELDS) words (a constant, for the viper code)
 RECORD_WORDS = const(12)
-RECORD_BYTES = const(48)
 _MASK = const(0x3FFFFFFF)  # counters wrap inside the 31-bit small-int range of 32-bit boards
 
 # Ring.st
@@ -41,7 +42,7 @@ class Ring:
         if n_records < 1 or n_records & (n_records - 1) or n_records > 1 << 16:
             raise ValueError("ring size must be a power of two, 1..65536 records")
         self.n = n_records
-        self.buf = bytearray(n_records * RECORD_BYTES)
+        self.buf = zeros(n_records * RECORD_WORDS)
         self.st = zeros(WORDS)
         self.st[NREC] = n_records
 

@@ -84,8 +84,10 @@ def case_source(module, call):
 
 
 def on_micropython(module, call, timeout=120, extra_paths=()):
-    """The result of `module.call` (e.g. "case_x(1, 2)") under MicroPython, decoded."""
-    return exact.result(run_micropython(case_source(module, call), timeout=timeout, extra_paths=extra_paths).stdout)
+    """The result of `module.call` (e.g. "case_x(1, 2)") under MicroPython, decoded. A package
+    on `extra_paths` shadows the repository's of the same name (PREFER_EXTRA_PATHS)."""
+    source = (PREFER_EXTRA_PATHS if extra_paths else "") + case_source(module, call)
+    return exact.result(run_micropython(source, timeout=timeout, extra_paths=extra_paths).stdout)
 
 
 def on_cpython(module, call):
