@@ -477,7 +477,12 @@ class App:
             self._write_exit(EXIT_RUNNING)
             self.start()
             waiting = getattr(link, "waiting", None)
+            paced = getattr(self._timer, "run_due", None)  # no timer interrupt: this loop runs the step
+            if paced is not None:
+                idle = None  # nothing wakes a sleeping board but the step's own time
             while not self._quit:
+                if paced is not None:
+                    paced()
                 if link is not None:
                     link.poll()
                 self.watch_host()

@@ -45,7 +45,9 @@ def run(board_path="board.json", calibration_path="calibration.json", machine=No
     try:
         recover_calibration(calibration_path)
         app = App(board_path, calibration_path, machine=machine, exit_path=exit_path, params_path=params_path)
-        link = Link(app)
+        from firmware.hal import console_stream
+
+        link = Link(app, *console_stream())
         link.hello()
         app.run(link)
     finally:

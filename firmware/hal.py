@@ -8,10 +8,14 @@ calls read_u16(), duty_u16(), value(), init() and deinit().
 
 
 def get_machine(board, machine=None):
-    """`machine` when given, else the `machine` module."""
+    """`machine` when given, else the `machine` module; on CircuitPython, which has none, the
+    machine-shaped face over its analogio, pwmio and digitalio (firmware/circuitpython_hw.py)."""
     if machine is not None:
         return machine
-    import machine as hw
+    try:
+        import machine as hw
+    except ImportError:
+        from firmware import circuitpython_hw as hw
 
     return hw
 
@@ -70,10 +74,49 @@ def timer_kind(board):
     return "soft"
 
 
+_MASK = 0x3FFFFFFF  # portable.ticks_us wraps at 2**30
+
+
+class PacedLoop:
+    """The loop timer of a runtime with no timer interrupt (CircuitPython): the main loop calls
+    run_due() on every pass, and it calls the step when its time has come, every 1e6 / hz us by
+    portable.ticks_us, measured from when the previous one was due (a late step does not shift
+    the ones after it; a loop more than a whole period behind starts counting again from now,
+    and the step counts the late start as an overrun)."""
+
+    def __init__(self, hz, callback):
+        from firmware.portable import ticks_us
+
+        self._ticks = ticks_us
+        self.period = 1000000 // hz
+        self._callback = callback
+        self._next = (ticks_us() + self.period) & _MASK
+        self.on = True
+
+    def run_due(self):
+        """Run the step if it is due; True when it ran."""
+        if not self.on:
+            return False
+        now = self._ticks()
+        if (now - self._next) & _MASK >= 1 << 29:  # next is still ahead (differences mod 2**30)
+            return False
+        self._callback(self)
+        nxt = (self._next + self.period) & _MASK
+        if (now - nxt) & _MASK < 1 << 29:  # more than a period behind
+            nxt = (now + self.period) & _MASK
+        self._next = nxt
+        return True
+
+    def deinit(self):
+        self.on = False
+
+
 def start_loop(machine, board, callback):
     """Start the periodic loop timer at board["loop_hz"] calling `callback(timer)`.
 
-    Returns (timer, kind): the object to deinit() and "hard" or "soft" (what it really is).
+    Returns (timer, kind): the object to deinit() and "hard", "soft" or "paced" (what it really
+    is). A `machine` without a Timer (CircuitPython's face) gets a PacedLoop, which the main loop
+    runs (App.run calls its run_due()).
     - "timer_api": "pyb" (the stm32 port): pyb.Timer(timer_id, freq=, callback=); pyb.Timer
       callbacks run in hard IRQ context on every stm32 release.
     - otherwise machine.Timer(timer_id).init(freq=, mode=PERIODIC, callback=), with hard=True
@@ -82,6 +125,8 @@ def start_loop(machine, board, callback):
       gets the same timer without hard=, which is soft: reported as such, never silent.
     """
     hz = board["loop_hz"]
+    if not hasattr(machine, "Timer") and board.get("timer_api") != "pyb":
+        return PacedLoop(hz, callback), "paced"
     if board.get("timer_api") == "pyb":
         import pyb
 
@@ -95,3 +140,18 @@ def start_loop(machine, board, callback):
             pass
     tim.init(freq=hz, mode=machine.Timer.PERIODIC, callback=callback)
     return tim, "soft"
+
+
+def console_stream():
+    """(stdin, write) for the link: (None, None) for sys.stdin and sys.stdout (MicroPython);
+    on CircuitPython, whose sys.stdin and sys.stdout are text, its USB console as the binary
+    serial usb_cdc.console, read without waiting (timeout 0)."""
+    try:
+        import usb_cdc
+    except ImportError:
+        return None, None
+    console = usb_cdc.console
+    if console is None:
+        return None, None
+    console.timeout = 0
+    return console, console.write

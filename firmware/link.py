@@ -43,6 +43,7 @@ class Link:
         self._stdin = stdin if stdin is not None else getattr(sys.stdin, "buffer", sys.stdin)
         self._poller = None
         self._ipoll = None
+        self._counts = hasattr(self._stdin, "in_waiting")
         self._line = bytearray(_MAX_LINE + 1)
         self._n = 0
         self._overflow = False
@@ -80,6 +81,8 @@ class Link:
     def waiting(self):
         """Input to read (App.run also asks it between passes of the main loop, at every
         wake-up: cheap, and allocation-free on MicroPython)."""
+        if self._counts:  # a serial object that says how many bytes wait (CircuitPython's usb_cdc)
+            return self._stdin.in_waiting > 0
         ipoll = self._ipoll
         if ipoll is None:
             if self._poller is None:

@@ -29,11 +29,15 @@ except ImportError:  # CPython
 
 try:
     from time import ticks_us  # noqa: F401  (MicroPython: a 30-bit wrapping microsecond clock)
-except ImportError:  # CPython
+except ImportError:  # CPython, CircuitPython
     import time as _time
 
+    _ns = getattr(_time, "perf_counter_ns", None) or _time.monotonic_ns
+
     def ticks_us():
-        return (_time.perf_counter_ns() // 1000) & 0x3FFFFFFF
+        # CircuitPython has no ticks_us: monotonic_ns, a long int, allocates on every call
+        # (docs/circuitpython.md says what that costs)
+        return (_ns() // 1000) & 0x3FFFFFFF
 
 
 def zeros(n, typecode="i"):

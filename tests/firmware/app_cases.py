@@ -22,6 +22,9 @@ MODULES = (
     "calibration", "measurement", "pi_control", "motor", "safety", "telemetry", "controller",
     "protocol", "link", "saved_params", "app", "board_main",
 )
+# ... but these, which import what only one runtime has (run on the emulated CircuitPython Pico
+# by tests/link/test_emulated_circuitpython.py)
+RUNTIME_ONLY = {"circuitpython_hw": "analogio, pwmio and digitalio: CircuitPython only"}
 
 
 def case_imports():
@@ -262,7 +265,7 @@ def case_board_main_stops_what_run_left_running(path):
         raise KeyboardInterrupt
 
     class QuietLink:  # the real one writes its binary hello to stdout, where this case reports
-        def __init__(self, app):
+        def __init__(self, app, stdin=None, write=None):
             pass
 
         def hello(self):

@@ -116,7 +116,8 @@ class Bench:
         self.master, self.slave = _pty()
         self.path = os.ttyname(self.slave)
         emulator = {"uf2": config["uf2"], "fs_image": config.get("fs_image"), "fs_offset": config["fs_offset"],
-                    "fs_size": config["fs_size"], "watch_pins": self.plant.watched}
+                    "fs_size": config["fs_size"], "watch_pins": self.plant.watched,
+                    "bootsel_pullup": bool(config.get("bootsel_pullup"))}
         self.node = subprocess.Popen(node_command() + [json.dumps(emulator)], stdin=subprocess.PIPE,
                                      stdout=subprocess.PIPE, stderr=sys.stderr, bufsize=0)
         self.to_node = self.node.stdin.fileno()

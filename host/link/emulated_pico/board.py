@@ -33,6 +33,10 @@ UF2_HELP = ("the MicroPython firmware for the Pico (RPI_PICO .uf2, from https://
 FLASH_BYTES = 2 * 1024 * 1024
 FS_SIZE = 1408 * 1024
 FS_OFFSET = FLASH_BYTES - FS_SIZE
+# CircuitPython's raspberrypi port keeps its CIRCUITPY FAT drive (512-byte blocks) in the second
+# MiB of a 2 MiB flash, after 1020 KiB of firmware and 4 KiB of nvm
+CIRCUITPY_FS_OFFSET = 1024 * 1024
+CIRCUITPY_FS_SIZE = 1024 * 1024
 START_TIMEOUT_S = 60
 
 
@@ -49,6 +53,14 @@ def resolve_uf2(uf2=None):
     if head[:4] != b"UF2\n":
         raise UserError("%s is not a UF2 file (it does not start with a UF2 block)" % path)
     return str(Path(path).resolve())
+
+
+def uf2_runtime(path):
+    """"circuitpython" when the UF2 holds CircuitPython (its banner's name is in the image), else
+    "micropython": they lay out the flash differently, and CircuitPython needs the BOOTSEL pull-up."""
+    with open(path, "rb") as f:
+        data = f.read()
+    return "circuitpython" if b"CircuitPython" in data else "micropython"
 
 
 def load_actuator(path=SIM_BOARD):
@@ -69,6 +81,7 @@ class EmulatedPico:
 
     def __init__(self, uf2=None, board=PICO_BOARD, actuator=SIM_BOARD, flash_image=None, load=None, log=None):
         self.uf2 = resolve_uf2(uf2)
+        self.runtime = uf2_runtime(self.uf2)
         self.board_path = Path(board)
         try:
             self.board = json.loads(self.board_path.read_text())
@@ -101,8 +114,12 @@ class EmulatedPico:
             os.close(fd)
             os.unlink(name)  # an absent image is an erased chip
             self.flash_image = Path(name)
+        circuitpython = self.runtime == "circuitpython"
         config = {"board": self.board, "actuator": self.actuator, "seed": self.seed, "uf2": self.uf2,
-                  "fs_image": str(self.flash_image), "fs_offset": FS_OFFSET, "fs_size": FS_SIZE}
+                  "fs_image": str(self.flash_image),
+                  "fs_offset": CIRCUITPY_FS_OFFSET if circuitpython else FS_OFFSET,
+                  "fs_size": CIRCUITPY_FS_SIZE if circuitpython else FS_SIZE,
+                  "bootsel_pullup": circuitpython}
         if self.load is not None:
             config["rig"] = {"load": dict(self.load)}
         fd, self._config_file = tempfile.mkstemp(prefix="lsea-pico-", suffix=".json")

@@ -120,6 +120,15 @@ function flashCall(pc) {
   mcu.core.PC = r[14] & ~1; // return to the caller (bx lr)
 }
 
+if (config.bootsel_pullup) {
+  // CircuitPython senses the BOOTSEL button at boot (it floats the flash's chip select and reads
+  // SIO GPIO_HI_IN bit 1) and waits while it reads low; rp2040js leaves the QSPI pad inputs low.
+  // Pull QSPI_SS high as the board's 10k pull-up does (../shared/mcu/rp2/circuitpython/README.md).
+  mcu.qspi[1].setInputValue(true);
+  const sio = mcu.sio, sioRead = sio.readUint32.bind(sio);
+  sio.readUint32 = (offset) => offset === 0x008 ? (sioRead(offset) | 2) : sioRead(offset);
+}
+
 mcu.core.PC = FLASH_BASE; // boot2 at the start of flash, as the bootrom would jump there
 
 // ---- USB CDC: the host side of the USB serial port ----
