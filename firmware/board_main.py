@@ -15,8 +15,6 @@ into status()["last_exit"]. Parameters kept with the `save` command live in `par
 
 import os
 
-from firmware.link import Link
-
 
 def _exists(path):
     try:
@@ -39,14 +37,16 @@ def run(board_path="board.json", calibration_path="calibration.json", machine=No
     from firmware.protocol import BOOTING
 
     print(BOOTING)  # before the slow part: a host waits for the hello instead of resetting again
+    # imported only now: CircuitPython compiles the source on the board (a second and more of
+    # an emulated Pico's time before the line above, with these at the top)
     from firmware.app import App
+    from firmware.hal import console_stream
+    from firmware.link import Link
 
     app = None
     try:
         recover_calibration(calibration_path)
         app = App(board_path, calibration_path, machine=machine, exit_path=exit_path, params_path=params_path)
-        from firmware.hal import console_stream
-
         link = Link(app, *console_stream())
         link.hello()
         app.run(link)

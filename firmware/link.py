@@ -54,7 +54,9 @@ class Link:
         self.telemetry_seq = 0
         self.lines = 0
         self.errors = 0
-        frame = zeros(P.telemetry_frame_words(_BATCH), "I")
+        # int32 words, as the records are: CircuitPython refuses a negative value in an unsigned
+        # array, and the ring copies the records in as they are (the CRC word is stored signed)
+        frame = zeros(P.telemetry_frame_words(_BATCH), "i")
         view = memoryview(frame)
         self._frame = frame
         # One view per record slot (the ring copies into it) and, per record count, the span
@@ -196,7 +198,8 @@ class Link:
             frame[1] = 4 + k * _RW * 4
             frame[2] = self.telemetry_seq
             frame[3] = ring.dropped
-            frame[4 + k * _RW] = binascii.crc32(self._crc_spans[k])
+            crc = binascii.crc32(self._crc_spans[k])
+            frame[4 + k * _RW] = crc - 0x100000000 if crc > 0x7FFFFFFF else crc
             self.write(self._frames[k])
             self.telemetry_seq = (self.telemetry_seq + 1) & P.SEQ_MASK
             sent += 1

@@ -120,7 +120,7 @@ class Ring:
     @micropython.viper
     def read_into(self, out) -> bool:
         """Copy the oldest unread record into `out` (RECORD_WORDS int32s, e.g. a memoryview of an
-        array('I') frame slot); False if there is none."""
+        array('i') frame slot); False if there is none."""
         s = ptr32(self.st)
         n = s[NREC]
         src = ptr32(self.buf)

@@ -26,7 +26,7 @@ def add_parser(subparsers):
                               "SIGHUP.")
     p.add_argument("--chip", choices=("unix", "rp2040"), default="unix",
                    help="unix (default): the MicroPython unix port; rp2040: an emulated Pico")
-    p.add_argument("--board", default=None, help="board file (default boards/sim.json; --chip rp2040: boards/pico.json)")
+    p.add_argument("--board", default=None, help="board file (default boards/sim.json; --chip rp2040: boards/pico.json, or boards/pico_circuitpython.json for a CircuitPython UF2)")
     p.add_argument("--calibration", default=None, help="calibration.json to put on the board (--chip rp2040: "
                    "installed with the firmware by host flash; default for boards/sim.json on the unix port: "
                    "boards/sim/calibration.json, the simulated actuator's own)")
@@ -49,10 +49,10 @@ def _raise_stopped(signum, frame):
 
 
 def _emulated_pico(args):
-    from host.link.emulated_pico.board import PICO_BOARD, SIM_BOARD, EmulatedPico
+    from host.link.emulated_pico.board import SIM_BOARD, EmulatedPico, default_board
     from host.link.flashing import flash, resolve_board
 
-    board_path, _ = resolve_board(args.board or str(PICO_BOARD))
+    board_path, _ = resolve_board(args.board or str(default_board(args.uf2)))
     pico = EmulatedPico(uf2=args.uf2, board=board_path, actuator=args.actuator or SIM_BOARD,
                         flash_image=args.flash_image, load=args.load, log=note)
     path = pico.start()

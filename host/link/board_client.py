@@ -31,9 +31,11 @@ RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this
 # A board whose firmware has said it is booting (protocol.BOOTING, printed by board_main before
 # the calibration's checks and tables: about a second on an RP2040, docs/emulated-pico.md, several
 # on a slow emulator) is waited for this long and never interrupted, as a Ctrl-C meant to restart
-# a silent board would cut the boot short.
-BOOT_WAIT_S = 30.0
+# a silent board would cut the boot short. CircuitPython also compiles the firmware's source at
+# boot: 4.3 s of an emulated Pico's time, up to 20 s of a busy computer's (docs/circuitpython.md).
+BOOT_WAIT_S = 60.0
 _SOFT_REBOOT = b"soft reboot"
+_ANY_KEY = b"Press any key to enter the REPL"  # CircuitPython, after code.py ended
 _BOOTING = P.BOOTING.encode()
 _PROMPT = b">>> "
 _TEXT_KEPT = 65536  # what soft_reset keeps of the board's output while it waits
@@ -147,6 +149,29 @@ class BoardClient:
                         return False  # booted to the REPL: no main.py of ours (a new board), or it ended
                 if booting_until is not None or time.monotonic() >= deadline:
                     return False
+        finally:
+            self._text = None
+
+    def to_repl(self, wait=5.0):
+        """Stop whatever runs (Ctrl-C) and leave the board at its REPL's prompt, where mpremote
+        takes over. CircuitPython, once its code.py has ended, waits with "Press any key to enter
+        the REPL" and drops what came before that line; the key is sent once it says so. True
+        when the prompt came within `wait` s."""
+        ser = self.serial
+        self._text = b""
+        try:
+            ser.write(b"\r\x03\x03")
+            deadline = time.monotonic() + wait
+            keyed = False
+            while time.monotonic() < deadline:
+                self._read_frames()
+                if not keyed and _ANY_KEY in self._text:
+                    ser.write(b"\r")
+                    keyed = True
+                    self._text = b""
+                if self._text.endswith(_PROMPT):
+                    return True
+            return False
         finally:
             self._text = None
 

@@ -88,10 +88,10 @@ class BoardPort:
         return self
 
     def _open_pico(self):
-        from host.link.emulated_pico.board import PICO_BOARD, EmulatedPico
+        from host.link.emulated_pico.board import EmulatedPico, default_board
         from host.link.flashing import flash, resolve_board
 
-        board_path, board = resolve_board(self.board or str(PICO_BOARD))
+        board_path, board = resolve_board(self.board or str(default_board(self.uf2)))
         if board.get("mcu") != "RP2040":
             raise UserError("an emulated Pico runs an RP2040 board file, not %s (mcu %s)" % (board_path, board.get("mcu")))
         if self.calibration is not None and not Path(self.calibration).is_file():

@@ -338,6 +338,19 @@ def identify(port):
             return None
 
 
+def to_repl(port):
+    """Whatever runs on the board (our firmware, another code.py) stopped, the board at its REPL
+    for mpremote: after Ctrl-C CircuitPython waits for a key, which mpremote does not send. A
+    port that cannot be opened here is left for mpremote to report."""
+    from host.link.board_client import BoardClient
+
+    try:
+        with BoardClient(port, check=False) as client:
+            client.to_repl()
+    except (UserError, OSError):
+        pass
+
+
 def check_runtime(port, board):
     """Refuse, in one line, a board file for the other runtime than the one the board runs (what
     its interpreter says at the REPL): CircuitPython cannot load mpy-cross's files, MicroPython
@@ -376,6 +389,7 @@ def flash(port, board_name="sim", calibration=None, progress=None, replace_board
     if running is not None and running != board["name"] and not replace_board:
         raise UserError("the board on %s runs lsea-kit for board %s, not %s: flash --board %s, or --replace-board to install %s"
                         % (port, running, board["name"], running, board["name"]))
+    to_repl(port)
     check_runtime(port, board)
     with tempfile.TemporaryDirectory(prefix="lsea-flash-") as tmp:
         if circuitpython(board):

@@ -271,15 +271,17 @@ def case_board_main_stops_what_run_left_running(path):
         def hello(self):
             pass
 
-    original = app_module.App.run, board_main.Link
-    app_module.App.run, board_main.Link = run_that_escapes, QuietLink
+    import firmware.link as link_module
+
+    original = app_module.App.run, link_module.Link
+    app_module.App.run, link_module.Link = run_that_escapes, QuietLink
     try:
         board_main.run("boards/sim.json", "no-calibration.json", machine=machine, exit_path=None, params_path=None)
         raise AssertionError("board_main.run swallowed the exception")
     except KeyboardInterrupt:
         pass
     finally:
-        app_module.App.run, board_main.Link = original
+        app_module.App.run, link_module.Link = original
     return {"during": seen["during"], "after": pwm_duties(seen["app"])}
 
 

@@ -23,7 +23,7 @@ def case_run_records(path, board_path="boards/sim.json"):
     app.set_calibration(load_calibration(path))
     app.start()
     app.set_stream(app.board["loop_hz"])  # a record every step
-    slot = memoryview(array("I", [0] * RECORD_WORDS))  # as firmware/link.py hands it to the ring
+    slot = memoryview(array("i", [0] * RECORD_WORDS))  # as firmware/link.py hands it to the ring
     out = {"crc": 0, "count": 0, "sample": []}
 
     def run(ticks):
@@ -34,7 +34,7 @@ def case_run_records(path, board_path="boards/sim.json"):
             while app.telemetry.read_into(slot):
                 out["crc"] = binascii.crc32(slot, out["crc"])
                 if out["count"] % 50 == 0:
-                    out["sample"].append([((v + 2**31) % 2**32) - 2**31 for v in slot])
+                    out["sample"].append(list(slot))
                 out["count"] += 1
             k += 1
 

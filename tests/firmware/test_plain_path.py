@@ -30,6 +30,8 @@ def test_plain_source_blanks_only_the_decorator_lines():
     plain = plain_source(text)
     assert plain == "\ndef f(x: int) -> int:\n    return x\n    # @micropython.viper here is a comment\n"
     assert plain.count("\n") == text.count("\n")  # tracebacks keep their line numbers
+    cast = "    s = ptr32(self.st)\n    t = int(ptr16(self.t1)[raw1])\ndef ptr32(buf):\n    return ptr32(a.b) + f(ptr32(x))\n"
+    assert plain_source(cast) == "    s = self.st\n    t = int(self.t1[raw1])\ndef ptr32(buf):\n    return a.b + f(x)\n"
     decorated = [p.name for p in FIRMWARE.glob("*.py") if any(d in p.read_text() for d in EMITTERS)]
     assert len(decorated) >= 8, decorated  # the firmware does use them, so this is not vacuous
 

@@ -24,10 +24,12 @@ from host.errors import UserError
 
 REPO = Path(__file__).resolve().parents[3]
 PICO_BOARD = REPO / "boards" / "pico.json"
+CIRCUITPYTHON_PICO_BOARD = REPO / "boards" / "pico_circuitpython.json"  # the same pins, for CircuitPython
 SIM_BOARD = REPO / "boards" / "sim.json"  # whose "actuator" is wired to the Pico by default
 UF2_ENV = "LSEA_PICO_UF2"
-UF2_HELP = ("the MicroPython firmware for the Pico (RPI_PICO .uf2, from https://micropython.org/download/RPI_PICO/; "
-            "1.26 or later for the hard timer); default $%s" % UF2_ENV)
+UF2_HELP = ("the Pico's firmware: MicroPython (RPI_PICO .uf2, from https://micropython.org/download/RPI_PICO/; "
+            "1.26 or later for the hard timer) or CircuitPython (raspberry_pi_pico .uf2, from "
+            "https://circuitpython.org/board/raspberry_pi_pico/, told apart by its contents); default $%s" % UF2_ENV)
 # MicroPython's rp2 port on a 2 MiB Pico keeps its littlefs in the last 1408 KiB of flash
 # (MICROPY_HW_FLASH_STORAGE_BYTES for RPI_PICO); the firmware lies below it.
 FLASH_BYTES = 2 * 1024 * 1024
@@ -63,6 +65,12 @@ def uf2_runtime(path):
     return "circuitpython" if b"CircuitPython" in data else "micropython"
 
 
+def default_board(uf2=None):
+    """The board file for the Pico firmware `uf2` runs (resolve_uf2's): boards/pico.json for
+    MicroPython, boards/pico_circuitpython.json for CircuitPython."""
+    return CIRCUITPYTHON_PICO_BOARD if uf2_runtime(resolve_uf2(uf2)) == "circuitpython" else PICO_BOARD
+
+
 def load_actuator(path=SIM_BOARD):
     """The simulated actuator (a board file's "actuator" section) and its seed."""
     try:
@@ -79,10 +87,10 @@ class EmulatedPico:
 
     chip = "rp2040"
 
-    def __init__(self, uf2=None, board=PICO_BOARD, actuator=SIM_BOARD, flash_image=None, load=None, log=None):
+    def __init__(self, uf2=None, board=None, actuator=SIM_BOARD, flash_image=None, load=None, log=None):
         self.uf2 = resolve_uf2(uf2)
         self.runtime = uf2_runtime(self.uf2)
-        self.board_path = Path(board)
+        self.board_path = Path(board or default_board(self.uf2))
         try:
             self.board = json.loads(self.board_path.read_text())
         except (OSError, ValueError) as exc:

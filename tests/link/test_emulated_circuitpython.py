@@ -1,0 +1,85 @@
+"""The firmware on an emulated Raspberry Pi Pico running CircuitPython (10.2.1 for raspberry_pi_pico,
+from ../shared/mcu/rp2/circuitpython) on rp2040js, the simulated actuator on the pins of
+boards/pico_circuitpython.json: installed by `host flash` over the emulated USB serial (plain
+source, host/link/plain_firmware.py, through the raw REPL), then `host status`, a closed-loop move
+and a force hold against the plant, with the step paced by the main loop (no timer interrupt).
+
+Without ../shared these skip with the reason; under CI (CI=true) that is a failure.
+"""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from testkit.interpreters import REPO
+from testkit.model import sim_board, write_model_calibration
+from tests.conftest import SHARED, shared_dir
+
+UF2 = SHARED / "mcu" / "rp2" / "circuitpython" / "circuitpython-10.2.1-raspberry_pi_pico.uf2"
+BOARD = "pico_circuitpython"
+
+
+def host(*args, timeout=600):
+    """`host ARGS` as a user runs it: (exit status, stdout, stderr)."""
+    proc = subprocess.run([sys.executable, "-m", "host"] + list(args), capture_output=True, text=True, cwd=REPO,
+                          timeout=timeout)
+    return proc.returncode, proc.stdout, proc.stderr
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    """The simulated actuator's own calibration (pot tables, Df, force, friction), made for this board."""
+    path = tmp_path_factory.mktemp("cal") / "pico-cp-model.json"
+    crc = write_model_calibration(path, board=dict(sim_board(), name=BOARD))
+    return path, crc
+
+
+@pytest.fixture(scope="module")
+def pico(calibration):
+    """An emulated Pico with CircuitPython out of its box (it formats its own drive), then `host flash`."""
+    shared_dir(UF2.parent, "CircuitPython for the emulated Pico")
+    from host.link.emulated_pico.board import EmulatedPico
+
+    with EmulatedPico(uf2=str(UF2)) as board:
+        assert board.runtime == "circuitpython" and board.board_path.name == BOARD + ".json"
+        # a board file for MicroPython is refused in one line, before anything is copied
+        code, out, err = host("flash", "--port", board.path, "--board", "pico")
+        assert code == 2 and "runs CircuitPython" in err and BOARD in err, out + err
+        code, out, err = host("flash", "--port", board.path, "--board", BOARD, "--calibration", str(calibration[0]))
+        assert code == 0, out + err
+        assert "flashed: firmware" in out and "on " + BOARD in out, out
+        yield board
+
+
+def test_host_status_on_the_flashed_circuitpython_pico(pico, calibration):
+    code, out, err = host("status", "--port", pico.path, "--json")
+    assert code == 0, err
+    status = json.loads(out)
+    assert status["board"] == BOARD
+    assert status["interpreter"].startswith("circuitpython 10.")  # told apart by what the board says
+    assert status["timer"] == "paced"  # no timer interrupt: the main loop runs the step
+    assert status["period_us"] == 1000000 // json.loads((REPO / "boards" / (BOARD + ".json")).read_text())["loop_hz"]
+    assert status["faults"] == []
+    assert status["calibration_crc"] == "%08x" % calibration[1] and status["calibration_error"] is None
+
+
+def test_a_move_and_a_force_hold_against_the_plant(pico):
+    from host.api import Board
+
+    pico.rig({"load": {"kind": "none"}, "reference": "pot2"})
+    with Board(pico.path) as board:
+        moved = board.move(40.0, timeout_s=60)
+        assert moved.reached, moved
+        block = pico.state()["block_mm"]
+        assert abs(block - 40.0) < 0.25, block  # the plant's block, not the firmware's estimate
+        pico.rig({"load": {"kind": "gauge", "side": "high", "anchor_mm": 45.0}})
+        held = board.force(-5.0, timeout_s=60, hold=True)
+        assert held.reached, held
+        tension = pico.state()["gauge_tension_n"]
+        assert abs(tension - 5.0) < 0.4, tension
+        board.stop()
+        status = board.status()
+    pico.rig({"load": {"kind": "none"}})
+    assert status["faults"] == [], status
