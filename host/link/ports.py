@@ -7,6 +7,9 @@ from host.link.port_advice import advice
 # (USB vendor id, product id or None for any) -> what is usually behind it
 KNOWN = (
     ((0x2E8A, None), "Raspberry Pi RP2040/RP2350 (Pico)"),
+    # CircuitPython's boards carry Adafruit's vendor id, the Pico's build too (its mpconfigboard.mk)
+    ((0x239A, 0x80F4), "Raspberry Pi Pico (CircuitPython)"),
+    ((0x239A, None), "Adafruit or CircuitPython board"),
     ((0xF055, 0x9800), "pyboard (MicroPython)"),
     ((0x303A, None), "Espressif native USB (ESP32-S2/S3/C3)"),
     ((0x10C4, 0xEA60), "CP210x USB-serial bridge (ESP32 DevKitC)"),

@@ -1,6 +1,7 @@
 """Run ON a CircuitPython board with the firmware installed (bench/bench_circuitpython.py sends it
-with `mpremote run`): what the step costs in each mode, what a pass of the main loop costs, and
-the period the paced loop really keeps. Prints one line, RESULT <json>.
+with `mpremote run`): what the step costs in each mode and allocates, what a pass of the main
+loop and a garbage collection cost, and the period the paced loop really keeps. Prints one line,
+RESULT <json>.
 
 Clock: time.monotonic_ns, which counts in 30.5 us ticks on the RP2040 port and allocates, so
 costs are taken over many calls; the paced loop's periods are read from it at every step."""
@@ -30,6 +31,7 @@ d2 = app.ctrl.meas.d2 if app.ctrl.meas is not None else 30000
 modes = [("idle", 0), ("open_loop", 1500)]
 if app.calibration is not None:
     modes += [("position", d2 + 5000), ("force", -2000)]
+out["alloc_bytes_per_step"] = {}
 for mode, target in modes:
     app.set_mode(mode)
     app.set_target(target)
@@ -41,6 +43,18 @@ for mode, target in modes:
         step(None)
         k += 1
     out["cost_us"][mode] = (_us() - t0) / N_COST
+    gc.collect()
+    gc.disable()
+    before = gc.mem_alloc()
+    k = 0
+    while k < N_COST:
+        step(None)
+        k += 1
+    out["alloc_bytes_per_step"][mode] = (gc.mem_alloc() - before) / N_COST
+    gc.enable()
+t0 = _us()
+gc.collect()
+out["collect_us"] = _us() - t0  # one collection with the firmware's live heap
 app.set_mode("idle")
 gc.collect()
 t0 = _us()

@@ -14,6 +14,7 @@ MOUSE = ("/dev/ttyS0", None, None, "n/a")
 
 def test_known_boards_are_labelled_and_others_are_not():
     assert "RP2040" in ports.label(0x2E8A, 0x0005)
+    assert "CircuitPython" in ports.label(0x239A, 0x80F4)  # the Pico running CircuitPython
     assert "pyboard" in ports.label(0xF055, 0x9800)
     assert "CP210x" in ports.label(0x10C4, 0xEA60)
     assert ports.label(0x046D, 0xC077) is None and ports.label(None, None) is None
