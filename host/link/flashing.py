@@ -29,10 +29,10 @@ from pathlib import Path
 
 from host.errors import UserError, install_hint
 from host.link.port_advice import advice
+from host.link.virtual_board import MAIN_PY
 
 REPO = Path(__file__).resolve().parents[2]
 STAGING = "_new"
-MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'
 
 # Runs on the board. Entries: (staged path, live path, is_dir).
 _SWAP = """\

@@ -43,7 +43,7 @@ from host.errors import UserError, install_hint
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_BOARD = REPO / "boards" / "sim.json"
-MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'
+MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'  # main.py (code.py on CircuitPython), host flash's too
 HEAP = "4M"
 _RAW_BANNER = b"raw REPL; CTRL-B to exit"
 _FRIENDLY_PROMPT = b">>> "
