@@ -10,6 +10,7 @@ from host.errors import UserError
 PICO = ("/dev/ttyACM0", 0x2E8A, 0x0005, "Board in FS mode")
 CP210X = ("/dev/ttyUSB0", 0x10C4, 0xEA60, "CP2102 USB to UART Bridge Controller")
 MOUSE = ("/dev/ttyS0", None, None, "n/a")
+CIRCUITPY_PICO = ("/dev/ttyACM1", 0x239A, 0x80F4, "Pico - CircuitPython CDC control")
 
 
 def test_known_boards_are_labelled_and_others_are_not():
@@ -22,6 +23,7 @@ def test_known_boards_are_labelled_and_others_are_not():
 
 def test_auto_picks_the_only_board_and_names_the_candidates_otherwise():
     assert ports.choose([MOUSE, PICO]) == "/dev/ttyACM0"
+    assert ports.choose([MOUSE, CIRCUITPY_PICO]) == "/dev/ttyACM1"  # a Pico with CircuitPython too
     with pytest.raises(UserError, match="no board found .*ttyS0"):
         ports.choose([MOUSE])
     with pytest.raises(UserError, match="2 boards found .*ttyACM0.*ttyUSB0"):
