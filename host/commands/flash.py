@@ -9,9 +9,11 @@ from host.terminal import note
 
 def add_parser(subparsers):
     p = subparsers.add_parser("flash", help="install firmware, board file and calibration on a board (mpy-cross + mpremote)",
-                              description="Compile the firmware with mpy-cross for the board's architecture, copy it with the "
-                              "board file and calibration through mpremote, swap it in with atomic renames, verify CRCs, "
-                              "reset and check the firmware answers. Interrupting it leaves the previous install usable.")
+                              description="Compile the firmware with mpy-cross for the board's architecture (CircuitPython: "
+                              "its plain source), copy it with the board file and calibration through mpremote, swap it in "
+                              "with atomic renames, verify CRCs, reset and check the firmware answers. Interrupting it "
+                              "leaves the previous install usable. --drive copies onto a CircuitPython board's mounted "
+                              "CIRCUITPY drive instead.")
     p.add_argument("--port", default="auto",
                    help=PORT_HELP)
     add_uf2_argument(p)
@@ -22,12 +24,25 @@ def add_parser(subparsers):
     p.add_argument("--calibration", default=None, metavar="FILE", help="calibration.json to install (default: keep the board's)")
     p.add_argument("--force", action="store_true", help="install a calibration although its readable fields (board, ADC "
                    "width, table knots) contradict its tables or name no board (the board still checks the tables)")
+    p.add_argument("--drive", default=None, metavar="DIR",
+                   help="a CircuitPython board's mounted CIRCUITPY drive: copy the files onto it (checked first, each "
+                        "renamed into place, read back), as its owners install code; needs --board (a CircuitPython "
+                        "board file, e.g. pico_circuitpython); CircuitPython reloads by itself")
     add_load_argument(p)
     p.set_defaults(func=run)
 
 
 def run(args):
     progress = note  # stderr, silenced by --quiet: stdout carries only the result line
+    if args.drive is not None:
+        from host.link.circuitpy_drive import install
+
+        if args.board is None:
+            raise UserError("--drive needs --board (a CircuitPython board file, e.g. pico_circuitpython)")
+        written = install(args.drive, args.board, args.calibration, progress=progress, force=args.force)
+        print("installed on %s: %d files, verified; CircuitPython reloads code.py by itself (check with host status)"
+              % (args.drive, len(written)))
+        return 0
     with open_port(args.port, args.board, load=args.load, factory=False, uf2=args.uf2) as where:
         if where.virtual is not None:  # an empty flash: nothing to ask, the board file is the virtual board's
             status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False,
