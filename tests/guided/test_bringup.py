@@ -102,6 +102,10 @@ def test_the_firmware_check_names_a_mpy_mismatch_and_a_loop_that_does_not_keep_t
     assert len(problems) == 1 and "timer_api" in problems[0], problems
     _, problems = check_firmware(dict(good, step_us_max=900), 1000)
     assert len(problems) == 1 and "loop_hz" in problems[0], problems
+    # CircuitPython runs the plain source: its .mpy word says nothing about ours
+    circuitpython = dict(good, interpreter="circuitpython 10.2.1", mpy=other["mpy"], period_us=4000, step_us_max=1400)
+    lines, problems = check_firmware(circuitpython, 250)
+    assert problems == [] and "plain source" in lines[0], (lines, problems)
 
 
 def test_noisy_pots_get_more_reads_per_step_with_consent(tmp_path, capsys):
