@@ -27,6 +27,7 @@ from firmware.telemetry import Ring
 FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
 EXIT_TEXT_MAX = 200
 STROKE_INSET_UM = 500  # the soft stroke limits' default distance inside the board file's stroke_mm
+PER_STEP_PARAMS = ("ki_pos", "ki_force", "defl_rate_um")  # what a step adds: scaled up below 1 kHz
 # The main loop's passes (link, host watchdog) are at most this far apart when there is nothing
 # to do. A pass costs about 0.2 ms of an RP2040; run at every interrupt (the step's, USB's), as
 # the emulated Pico showed (docs/emulated-pico.md), passes kept its CPU about 70 % busy at rest.
@@ -144,6 +145,13 @@ class App:
         if stroke is not None:
             self.defaults[self._param_index("stroke_min_um")] = int(round(stroke[0] * 1000)) + STROKE_INSET_UM
             self.defaults[self._param_index("stroke_max_um")] = int(round(stroke[1] * 1000)) - STROKE_INSET_UM
+        # The table's gains and ramps are per step, tuned at 1 kHz: a board that steps slower gets
+        # the same per second (CircuitPython's 250 Hz; docs/circuitpython.md), within each's limit
+        loop_hz = self.board["loop_hz"]
+        if loop_hz < 1000:
+            for name in PER_STEP_PARAMS:
+                i = self._param_index(name)
+                self.defaults[i] = min(PARAMS[i][3], (self.defaults[i] * 1000 + loop_hz // 2) // loop_hz)
         for i in range(len(PARAMS)):
             self.ctrl.p[i] = self.defaults[i]
         saved, self.params_file_error = saved_params.load(params_path, PARAMS)
@@ -193,7 +201,7 @@ class App:
             if why is not None:
                 self.calibration_error = why
                 return
-            meas = Measurement(cal)
+            meas = Measurement(cal, loop_hz=self.board["loop_hz"])
         except Exception as exc:  # MemoryError, a curve that falls, anything: boot on without it
             self.calibration_error = "calibration unusable: %s" % (exc,)
             return

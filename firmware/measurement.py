@@ -61,7 +61,8 @@ BASE2 = const(14)
 FF_DUTY = const(15)  # the duty that holds the spring at the friction force (0: no feed-forward)
 F_IN = const(16)  # added to d before F0 is evaluated: 0 for a polynomial, FORCE_PWL_OFFSET for a table
 DF_IN = const(17)  # 1 when Df is a table: its input is (D1 >> 1) + DF_PWL_OFFSET (pwl_fixed.df_table_input)
-WORDS = const(18)
+FS_SHIFT = const(18)  # the spring force's low-pass: over 2**FS_SHIFT steps (filter_shift)
+WORDS = const(19)
 TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
 
@@ -93,6 +94,16 @@ def board_problem(calibration, board):
     return None
 
 
+def filter_shift(loop_hz):
+    """log2 of the steps the spring force is averaged over before the play operator: 64 at 1 kHz
+    and above (docs/firmware.md says why 64), the same 64 ms at a slower loop (16 steps at
+    CircuitPython's 250 Hz), never fewer than 4 steps."""
+    shift = 6
+    while shift > 2 and loop_hz * 64 < 1000 << shift:  # 2**shift steps last longer than 64 ms
+        shift -= 1
+    return shift
+
+
 def _converter(kind):
     if kind == "bcm3":
         return bcm3
@@ -104,7 +115,7 @@ def _converter(kind):
 class Measurement:
     """Holds the calibration constants and the latest converted values (all ints)."""
 
-    def __init__(self, calibration, tabulate=True):
+    def __init__(self, calibration, tabulate=True, loop_hz=1000):
         kind1, self.k1 = calibration.pot1
         kind2, self.k2 = calibration.pot2
         self.adc_bits = adc_bits_of(kind1, self.k1)
@@ -136,6 +147,7 @@ class Measurement:
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
         st[LAST_CODE] = (1 << self.adc_bits) - 1
+        st[FS_SHIFT] = filter_shift(loop_hz)
         self._play = self._load_force  # bound once: found in the instance by viper's first look
         self.t1 = self.t2 = None
         self._scan(tabulate and self.adc_bits <= TABLE_MAX_BITS)
@@ -265,7 +277,7 @@ class Measurement:
 
     @micropython.viper
     def _load_force(self, f: int) -> int:
-        """The load's force: a play operator of width h on F0(d) low-passed over 64 steps."""
+        """The load's force: a play operator of width h on F0(d) low-passed over 2**FS_SHIFT steps."""
         s = ptr32(self.st)
         # A file's F0 may reach 2**29 mN (poly_fixed's bound); 1 kN is far beyond any spring
         # here and keeps f << 5 and the differences below within 2**30 (h <= 10 N).
@@ -279,7 +291,7 @@ class Measurement:
             s[OUT32] = x
             s[PRIMED] = 1
         fs = ((s[FS32] + _B29) & _M30) - _B29
-        fs = fs + ((x - fs) >> 6)
+        fs = fs + ((x - fs) >> s[FS_SHIFT])
         s[FS32] = fs
         h = s[FRIC] << 5
         out = ((s[OUT32] + _B29) & _M30) - _B29
