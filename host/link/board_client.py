@@ -36,6 +36,9 @@ RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this
 BOOT_WAIT_S = 60.0
 _SOFT_REBOOT = b"soft reboot"
 _ANY_KEY = b"Press any key to enter the REPL"  # CircuitPython, after code.py ended
+# CircuitPython's line as it starts code.py, before a line of ours: it compiles the firmware's
+# source first, which an emulated Pico on a busy computer can take longer over than RESET_RETRY_S
+_CODE_PY = b"code.py output:"
 _BOOTING = P.BOOTING.encode()
 _PROMPT = b">>> "
 _TEXT_KEPT = 65536  # what soft_reset keeps of the board's output while it waits
@@ -118,7 +121,8 @@ class BoardClient:
         a board then boots main.py, i.e. the firmware. True once its hello frame came.
 
         What the board says after the Ctrl-D decides the wait. Our firmware saying it is booting
-        (protocol.BOOTING): its hello is waited for up to BOOT_WAIT_S, the boot never interrupted.
+        (protocol.BOOTING), or CircuitPython saying it starts code.py: its hello is waited for up
+        to BOOT_WAIT_S, the boot never interrupted.
         The REPL's prompt: nothing of ours runs (a board with MicroPython only, or main.py ended):
         False at once. Anything else (silence, the raw REPL's banner, another main.py): the
         sequence is sent again every RESET_RETRY_S while `wait` lasts; a tool killed halfway
@@ -143,9 +147,9 @@ class BoardClient:
                         if frame.type == P.T_HELLO:
                             return True
                     after = self._text[self._text.rfind(_SOFT_REBOOT) + 1:] if _SOFT_REBOOT in self._text else b""
-                    if booting_until is None and _BOOTING in after:
+                    if booting_until is None and (_BOOTING in after or _CODE_PY in after):
                         booting_until = time.monotonic() + BOOT_WAIT_S
-                    elif _PROMPT in after:
+                    if _PROMPT in after or _ANY_KEY in after:
                         return False  # booted to the REPL: no main.py of ours (a new board), or it ended
                 if booting_until is not None or time.monotonic() >= deadline:
                     return False
