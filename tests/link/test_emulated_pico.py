@@ -16,6 +16,7 @@ import pytest
 from testkit.interpreters import REPO
 from testkit.model import sim_board, write_model_calibration
 from tests.conftest import SHARED, shared_dir
+from tests.link.emulated_moves import move_and_hold
 
 UF2 = SHARED / "mcu" / "rp2" / "micropython-v1.28.0-RPI_PICO.uf2"
 
@@ -61,24 +62,9 @@ def test_host_status_on_the_flashed_pico(pico, calibration):
 
 
 def test_a_move_and_a_force_hold_against_the_plant(pico):
-    from host.api import Board
+    status = move_and_hold(pico, timeout_s=20)
+    assert status["overruns"] == 0, status
 
-    pico.rig({"load": {"kind": "none"}, "reference": "pot2"})
-    with Board(pico.path) as board:
-        moved = board.move(40.0, timeout_s=20)
-        assert moved.reached, moved
-        block = pico.state()["block_mm"]
-        assert abs(block - 40.0) < 0.25, block  # the plant's block, not the firmware's estimate
-        # the gauge on the 60 mm side, its fibre taut below 45 mm: the block at 40 mm pulls it
-        pico.rig({"load": {"kind": "gauge", "side": "high", "anchor_mm": 45.0}})
-        held = board.force(-5.0, timeout_s=20, hold=True)
-        assert held.reached, held
-        tension = pico.state()["gauge_tension_n"]
-        assert abs(tension - 5.0) < 0.4, tension  # what the gauge feels (the model calibration's F0)
-        board.stop()
-        status = board.status()
-    pico.rig({"load": {"kind": "none"}})
-    assert status["faults"] == [] and status["overruns"] == 0, status
 
 
 def test_every_counter_wraps_on_the_real_port(pico):
