@@ -2,9 +2,9 @@
 
 The link (firmware/link.py) calls these methods; the timer calls Controller.step. Every path
 out of run() (return, exception, KeyboardInterrupt, soft reset's SystemExit) leaves the motor
-off, and then records why run() ended: status()["last_exit"], and a one-line file (`exit_path`,
-"last_exit.txt" on a board) that the next boot reads back, so the cause of a Ctrl-C or a soft
-reset is readable afterwards. Without a usable calibration, raw readings and open loop still
+off, and then records why run() ended: status()["last_exit"], and a one-line record
+(`exit_record`, firmware/records.py: "last_exit.txt" on a board) that the next boot reads back, so
+the cause of a Ctrl-C or a soft reset is readable afterwards. Without a usable calibration, raw readings and open loop still
 work; closed-loop modes are refused with the reason, and status() shows it.
 """
 
@@ -73,16 +73,15 @@ except AttributeError:  # CPython
         return a - b
 
 
-def _read_exit(path):
-    """The exit cause the previous run() left in `path`, or None (no file, nothing readable)."""
-    if path is None:
+def _read_exit(record):
+    """The exit cause the previous run() left in `record`, or None (none, nothing readable)."""
+    if record is None:
         return None
     try:
-        with open(path) as f:
-            text = f.read(EXIT_TEXT_MAX).strip()
-    except (OSError, ValueError):  # no file yet; undecodable bytes
+        text = record.read(EXIT_TEXT_MAX)
+    except (OSError, ValueError):  # undecodable bytes, a damaged record
         return None
-    return text or None
+    return (text or "").strip() or None
 
 
 def _interpreter():
@@ -122,7 +121,9 @@ def _load_calibration(path):
 
 
 class App:
-    def __init__(self, board_path, calibration_path, machine=None, ring_records=128, exit_path=None, params_path=None):
+    def __init__(self, board_path, calibration_path, machine=None, ring_records=128, exit_record=None, params_record=None):
+        """`exit_record`, `params_record`: where the exit cause and the saved parameters are kept
+        across boots (firmware/records.py; hal.record gives a board's), None for nowhere."""
         self.board = _load_board(board_path)
         self.machine = hal.get_machine(self.board, machine)
         # The motor first, so that whatever fails later at boot, the bridge is already off.
@@ -137,7 +138,7 @@ class App:
         if cal is not None:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
-        self.params_path = params_path
+        self.params_record = params_record
         # The board's defaults: the table's, with the soft stroke limits 0.5 mm inside the board
         # file's "stroke_mm" when it has one (the table's 0.5/59.5 mm are a 0-60 mm actuator's)
         self.defaults = array("i", [row[1] for row in PARAMS])
@@ -154,11 +155,11 @@ class App:
                 self.defaults[i] = min(PARAMS[i][3], (self.defaults[i] * 1000 + loop_hz // 2) // loop_hz)
         for i in range(len(PARAMS)):
             self.ctrl.p[i] = self.defaults[i]
-        saved, self.params_file_error = saved_params.load(params_path, PARAMS)
+        saved, self.params_file_error = saved_params.load(params_record, PARAMS)
         lo_i, hi_i = self._param_index("stroke_min_um"), self._param_index("stroke_max_um")
         lo, hi = saved.get(lo_i, self.defaults[lo_i]), saved.get(hi_i, self.defaults[hi_i])
         if lo >= hi:  # each in its range, but no position between them: every move would be refused
-            self.params_file_error = "%s unusable: stroke_min_um %d not below stroke_max_um %d" % (params_path, lo, hi)
+            self.params_file_error = "%s unusable: stroke_min_um %d not below stroke_max_um %d" % (params_record.name, lo, hi)
             saved = {}
         self.params_from_file = bool(saved)
         for i in saved:
@@ -178,8 +179,8 @@ class App:
         self._timer = None
         self.timer_kind = hal.timer_kind(self.board)  # what the board file asks; start() says what it got
         self._quit = False
-        self.exit_path = exit_path
-        self.last_exit = _read_exit(exit_path)  # why the previous run() ended (this boot's or the last)
+        self.exit_record = exit_record
+        self.last_exit = _read_exit(exit_record)  # why the previous run() ended (this boot's or the last)
         self.interpreter, self.mpy = _interpreter()
         self.interface = interface_hash()  # once, at boot: the table's text is a kilobyte of heap
         # the modules only the boot needed: on a board their code goes back to the heap
@@ -333,12 +334,12 @@ class App:
     def save_params(self):
         """Keep the parameters in force on the board (loaded at the next boot). Idle only: a
         flash write may hold up the control step."""
-        if self.params_path is None:
-            raise ValueError("this board has no file for saved parameters")
+        if self.params_record is None:
+            raise ValueError("this board has no place for saved parameters")
         if self.ctrl.mode != IDLE:
             raise ValueError("stop first: parameters are saved only while idle")
         self.safety.heard()
-        saved_params.save(self.params_path, PARAMS, self.ctrl.p)
+        saved_params.save(self.params_record, PARAMS, self.ctrl.p)
         self.params_file_error = None
         self.params_from_file = True
         p = self.ctrl.p
@@ -347,7 +348,7 @@ class App:
             if self.temporary[i]:  # saved for good now
                 self.temporary[i] = 0
         self.n_temporary = 0
-        return {"file": self.params_path, "saved": self.params_saved()}
+        return {"file": self.params_record.name, "saved": self.params_saved()}
 
     def _param_index(self, name):
         for i, row in enumerate(PARAMS):
@@ -535,10 +536,9 @@ class App:
         self._write_exit(self.last_exit)
 
     def _write_exit(self, text):
-        if self.exit_path is None or text is None:
+        if self.exit_record is None or text is None:
             return
         try:
-            with open(self.exit_path, "w") as f:
-                f.write(text)
+            self.exit_record.write(text)
         except Exception:  # a full or read-only filesystem: the status still has it
             pass

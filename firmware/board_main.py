@@ -10,7 +10,8 @@ back (recover_calibration). The motor is off on every way out (normal return, Ct
 promises it, and `run` stops the App again in `finally` in case construction or the link failed.
 App.run records why it ended in `last_exit.txt` (beside main.py); the next boot reads it back
 into status()["last_exit"]. Parameters kept with the `save` command live in `params.txt`
-(firmware/saved_params.py) and are loaded at boot.
+(firmware/saved_params.py) and are loaded at boot. On CircuitPython both are slots of
+microcontroller.nvm instead, named nvm:last_exit.txt and nvm:params.txt (hal.record).
 """
 
 import os
@@ -40,13 +41,14 @@ def run(board_path="board.json", calibration_path="calibration.json", machine=No
     # imported only now: CircuitPython compiles the source on the board (a second and more of
     # an emulated Pico's time before the line above, with these at the top)
     from firmware.app import App
-    from firmware.hal import console_stream
+    from firmware.hal import console_stream, record
     from firmware.link import Link
 
     app = None
     try:
         recover_calibration(calibration_path)
-        app = App(board_path, calibration_path, machine=machine, exit_path=exit_path, params_path=params_path)
+        app = App(board_path, calibration_path, machine=machine, exit_record=record(exit_path),
+                  params_record=record(params_path))
         link = Link(app, *console_stream())
         link.hello()
         app.run(link)

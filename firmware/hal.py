@@ -169,3 +169,25 @@ def console_stream():
         return None, None
     console.timeout = 0
     return console, console.write
+
+
+# Where each record lives in CircuitPython's 4 KiB microcontroller.nvm: (offset, bytes)
+NVM_SLOTS = {"last_exit.txt": (0, 512), "params.txt": (512, 2048)}
+
+
+def record(path):
+    """The record the firmware keeps under `path` across boots (firmware/records.py), None for
+    None: the file on MicroPython; on CircuitPython, whose drive is read-only to code, its slot of
+    microcontroller.nvm (named "nvm:" + path)."""
+    from firmware import records
+
+    if path is None:
+        return None
+    try:
+        from microcontroller import nvm  # CircuitPython's; no such module on MicroPython
+    except ImportError:
+        nvm = None
+    if nvm is not None and path in NVM_SLOTS:
+        offset, size = NVM_SLOTS[path]
+        return records.NvmRecord(nvm, offset, size, "nvm:" + path)
+    return records.FileRecord(path)

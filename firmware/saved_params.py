@@ -1,6 +1,6 @@
-"""Controller parameters kept on the board's filesystem, so a tuned actuator keeps its gains.
+"""Controller parameters kept on the board, so a tuned actuator keeps its gains.
 
-File format (text, written only by `save`, read at boot by `load`):
+Format (text, written only by `save`, read at boot by `load`):
 
     lsea-kit params 1
     kp_pos 900
@@ -9,26 +9,14 @@ File format (text, written only by `save`, read at boot by `load`):
 
 `crc` is the CRC32 of every byte before its line. A file is used whole or not at all: a bad
 CRC, an unknown name or a value outside the table's range refuses it (with the reason), and the
-table's defaults stand. `save` writes PATH.new, reads it back as the boot would (refusing a
-save whose file does not give the values back, PATH untouched) and renames it over PATH; where the filesystem
-cannot rename onto an existing file (FAT), PATH is removed first, and `load` then takes a
-complete PATH.new when PATH is missing, so a power cut at any moment leaves the old values or
-the new ones.
+table's defaults stand. It lives in a record (firmware/records.py: a file on MicroPython, a slot
+of microcontroller.nvm on CircuitPython), which `save` replaces whole after checking that the text
+reads back as these values.
 """
-
-import os
 
 import binascii
 
 HEADER = "lsea-kit params 1"
-
-
-def _exists(path):
-    try:
-        os.stat(path)
-        return True
-    except OSError:
-        return False
 
 
 def _parse(text, table):
@@ -58,49 +46,37 @@ def _parse(text, table):
     return values
 
 
-def load(path, table):
-    """({index: value}, None) from the saved file, or ({}, None) when there is none, or
-    ({}, reason) when there is one that cannot be used. Never raises."""
-    if path is None:
+def load(record, table):
+    """({index: value}, None) from the saved record (firmware/records.py), or ({}, None) when
+    there is none, or ({}, reason) when there is one that cannot be used. Never raises."""
+    if record is None:
         return {}, None
-    use = path
-    if not _exists(path):
-        if not _exists(path + ".new"):
-            return {}, None
-        use = path + ".new"  # a save that stopped after removing the old file (FAT)
     try:
-        with open(use) as f:
-            text = f.read(4096)
+        text = record.read(4096)
+        if text is None:
+            return {}, None
         return _parse(text, table), None
     except MemoryError:
-        return {}, "%s too large" % use
+        return {}, "%s too large" % record.name
     except Exception as exc:  # ValueError from _parse or int(), OSError, UnicodeError
         why = str(exc)
         if not why:  # random bytes: MicroPython's UnicodeError says nothing
             why = "%s (not a text params file)" % type(exc).__name__
-        return {}, "%s unusable: %s" % (use, why)
+        return {}, "%s unusable: %s" % (record.name, why)
 
 
-def save(path, table, values):
-    """Write every parameter's value (`values[i]` for table row i) to `path`, atomically."""
+def save(record, table, values):
+    """Replace the saved record with every parameter's value (`values[i]` for table row i)."""
     lines = [HEADER]
     for i, row in enumerate(table):
         lines.append("%s %d" % (row[0], values[i]))
     body = "\n".join(lines) + "\n"
-    tmp = path + ".new"
-    with open(tmp, "w") as f:
-        f.write(body)
-        f.write("crc %08x\n" % (binascii.crc32(body.encode()) & 0xFFFFFFFF))
-    with open(tmp) as f:  # read back as the next boot will, before it replaces the file in use
-        try:
-            got = _parse(f.read(4096), table)
-        except ValueError as exc:
-            got = str(exc)
+    text = body + "crc %08x\n" % (binascii.crc32(body.encode()) & 0xFFFFFFFF)
+    try:  # read as the next boot will, before anything is written
+        got = _parse(text, table)
+    except ValueError as exc:
+        got = str(exc)
     if got != dict((i, values[i]) for i in range(len(table))):
-        os.remove(tmp)
-        raise ValueError("%s did not read back as written (%s): the saved parameters are unchanged" % (tmp, got))
-    try:
-        os.rename(tmp, path)
-    except OSError:  # FAT cannot rename onto an existing file
-        os.remove(path)
-        os.rename(tmp, path)
+        raise ValueError("%s would not read back as these values (%s): the saved parameters are unchanged"
+                         % (record.name, got))
+    record.write(text)

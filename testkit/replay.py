@@ -127,8 +127,10 @@ def load(path):
 def replay_app(data, calibration="model", board_path="boards/sim.json", exit_path=None):
     """(App, ReplayMachine): the App of board file `board_path` on a machine replaying
     data["codes"] on the board's ADC pins, with the calibration file data["calibrations"][name]
-    (None: none) loaded by firmware.calibration, as at boot."""
+    (None: none) loaded by firmware.calibration, as at boot; its exit cause kept in the record
+    at `exit_path` (hal.record: the file), if given."""
     from firmware.app import App
+    from firmware.hal import record
 
     with open(board_path) as f:
         board = json.load(f)
@@ -137,7 +139,7 @@ def replay_app(data, calibration="model", board_path="boards/sim.json", exit_pat
         if name in data["codes"]:
             codes[pin] = data["codes"][name]
     machine = ReplayMachine(codes)
-    app = App(board_path, None, machine=machine, exit_path=exit_path)
+    app = App(board_path, None, machine=machine, exit_record=record(exit_path))
     if calibration is not None:
         app.set_calibration(load_calibration(data, calibration))
     return app, machine

@@ -20,7 +20,7 @@ except ImportError:
 MODULES = (
     "portable", "hal", "board_config", "sampler", "bcm_fixed", "pwl_fixed", "poly_fixed",
     "calibration", "measurement", "pi_control", "motor", "safety", "telemetry", "controller",
-    "protocol", "link", "saved_params", "app", "board_main",
+    "protocol", "link", "records", "saved_params", "app", "board_main",
 )
 # ... but these, which import what only one runtime has (run on the emulated CircuitPython Pico
 # by tests/link/test_emulated_circuitpython.py)
@@ -856,6 +856,7 @@ def case_stroke_limits_must_leave_a_stroke(path, params_path, junk_path):
     reason that says something."""
     from firmware import saved_params
     from firmware.app import App
+    from firmware.hal import record
     from firmware.protocol import PARAMS
 
     data = load(path)
@@ -874,8 +875,8 @@ def case_stroke_limits_must_leave_a_stroke(path, params_path, junk_path):
     values = [row[1] for row in PARAMS]
     values[[row[0] for row in PARAMS].index("stroke_min_um")] = 40000
     values[[row[0] for row in PARAMS].index("stroke_max_um")] = 30000
-    saved_params.save(params_path, PARAMS, values)
-    booted = App("boards/sim.json", None, machine=machine, params_path=params_path)
-    junk = App("boards/sim.json", None, machine=machine, params_path=junk_path)
+    saved_params.save(record(params_path), PARAMS, values)
+    booted = App("boards/sim.json", None, machine=machine, params_record=record(params_path))
+    junk = App("boards/sim.json", None, machine=machine, params_record=record(junk_path))
     return {"refused": len(refused), "first": refused[0], "file_error": booted.params_file_error,
             "stroke": booted.status()["stroke_um"], "junk_error": junk.params_file_error}

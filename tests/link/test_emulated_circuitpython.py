@@ -70,3 +70,27 @@ def test_a_move_and_a_force_hold_against_the_plant(pico):
     # the estimate settles first; the block follows the spring within the next periods (at 250 Hz a
     # quarter as many a second as at 1 kHz): half a second of board time before the gauge is read
     move_and_hold(pico, timeout_s=60, settle_s=0.5, rate=250)
+
+
+def test_saved_parameters_and_the_exit_cause_survive_a_restart_in_nvm(pico):
+    """CircuitPython's drive is read-only to code: `host params --save` keeps the values in the
+    chip's microcontroller.nvm (firmware/records.py), the next boot loads them, and the cause of
+    the run the restart ended (Ctrl-C) is read back from there."""
+    from firmware.protocol import PARAMS
+    from host.link.board_client import BoardClient
+
+    default = dict((row[0], row[1]) for row in PARAMS)["kp_pos"]
+    code, out, err = host("params", "--port", pico.path, "kp_pos=%d" % (default + 32), "--save")
+    assert code == 0 and "nvm:params.txt" in out, out + err
+    try:
+        with BoardClient(pico.path, check=False) as client:
+            assert client.soft_reset(wait=60)
+        code, out, err = host("status", "--port", pico.path, "--json")
+        assert code == 0, err
+        status = json.loads(out)
+        assert status["params_saved"] == {"kp_pos": default + 32}, status
+        assert status["params_file_error"] is None
+        assert status["last_exit"].startswith("interrupted: KeyboardInterrupt"), status["last_exit"]
+    finally:  # the defaults again, saved, for whatever runs on this board next
+        code, out, err = host("params", "--port", pico.path, "kp_pos=%d" % default, "--save")
+        assert code == 0, out + err

@@ -9,7 +9,8 @@ import time
 
 import pytest
 
-from firmware import saved_params
+from firmware import records, saved_params
+from firmware.records import FileRecord
 from firmware.protocol import PARAMS
 from host import cli
 from host.link.board_client import BoardClient
@@ -25,8 +26,8 @@ def test_save_then_load_gives_the_values_back(tmp_path):
     path = str(tmp_path / "params.txt")
     values = list(DEFAULTS)
     values[0] = 900
-    saved_params.save(path, PARAMS, values)
-    got, why = saved_params.load(path, PARAMS)
+    saved_params.save(FileRecord(path), PARAMS, values)
+    got, why = saved_params.load(FileRecord(path), PARAMS)
     assert why is None and got == dict(enumerate(values))
     assert not os.path.exists(path + ".new")
 
@@ -41,9 +42,9 @@ def test_a_damaged_file_is_refused_whole_with_the_reason(tmp_path, damage, reaso
     path = tmp_path / "params.txt"
     values = list(DEFAULTS)
     values[0] = 900
-    saved_params.save(str(path), PARAMS, values)
+    saved_params.save(FileRecord(str(path)), PARAMS, values)
     path.write_text(damage(path.read_text()))
-    got, why = saved_params.load(str(path), PARAMS)
+    got, why = saved_params.load(FileRecord(str(path)), PARAMS)
     assert got == {} and reason in why
 
 
@@ -60,15 +61,15 @@ def test_a_value_outside_the_table_or_an_unknown_name_is_refused(tmp_path):
     table = [("a", 1, 0, 10, "x"), ("b", 2, 0, 10, "x")]
     path = str(tmp_path / "p.txt")
     _params_file(path, ["a 5", "b 11"])
-    assert "outside 0..10" in saved_params.load(path, table)[1]
+    assert "outside 0..10" in saved_params.load(FileRecord(path), table)[1]
     _params_file(path, ["a 1", "b 2", "c 0"])
-    assert "unknown parameter" in saved_params.load(path, table)[1]
+    assert "unknown parameter" in saved_params.load(FileRecord(path), table)[1]
     with pytest.raises(ValueError, match="outside 0..10"):  # nor does save write such a file
-        saved_params.save(path, table, [5, 11])
+        saved_params.save(FileRecord(path), table, [5, 11])
 
 
 def test_no_file_means_defaults_and_no_complaint(tmp_path):
-    assert saved_params.load(str(tmp_path / "none.txt"), PARAMS) == ({}, None)
+    assert saved_params.load(FileRecord(str(tmp_path / "none.txt")), PARAMS) == ({}, None)
     assert saved_params.load(None, PARAMS) == ({}, None)
 
 
@@ -76,7 +77,7 @@ def test_a_filesystem_that_cannot_rename_onto_a_file_still_saves(tmp_path, monke
     """FAT: rename onto an existing file fails, so the old file is removed first; a power cut
     right then leaves only PATH.new, which load takes."""
     path = str(tmp_path / "params.txt")
-    saved_params.save(path, PARAMS, DEFAULTS)
+    saved_params.save(FileRecord(path), PARAMS, DEFAULTS)
     real_rename = os.rename
 
     def fat_rename(src, dst):
@@ -84,31 +85,32 @@ def test_a_filesystem_that_cannot_rename_onto_a_file_still_saves(tmp_path, monke
             raise OSError(17, "EEXIST")
         real_rename(src, dst)
 
-    monkeypatch.setattr(saved_params.os, "rename", fat_rename)
+    monkeypatch.setattr(records.os, "rename", fat_rename)
     values = list(DEFAULTS)
     values[1] = 20
-    saved_params.save(path, PARAMS, values)
-    assert saved_params.load(path, PARAMS)[0][1] == 20
+    saved_params.save(FileRecord(path), PARAMS, values)
+    assert saved_params.load(FileRecord(path), PARAMS)[0][1] == 20
     # the power cut between the remove and the rename
-    monkeypatch.setattr(saved_params.os, "rename", lambda src, dst: (_ for _ in ()).throw(OSError(5, "EIO")))
+    monkeypatch.setattr(records.os, "rename", lambda src, dst: (_ for _ in ()).throw(OSError(5, "EIO")))
     values[1] = 30
     with pytest.raises(OSError):
-        saved_params.save(path, PARAMS, values)
+        saved_params.save(FileRecord(path), PARAMS, values)
     assert not os.path.exists(path) and os.path.exists(path + ".new")
-    assert saved_params.load(path, PARAMS)[0][1] == 30
+    assert saved_params.load(FileRecord(path), PARAMS)[0][1] == 30
 
 
 def test_the_unix_port_reads_what_cpython_wrote_and_the_other_way(tmp_path):
     a, b = str(tmp_path / "a.txt"), str(tmp_path / "b.txt")
     values = list(DEFAULTS)
     values[2] = 3000
-    saved_params.save(a, PARAMS, values)
+    saved_params.save(FileRecord(a), PARAMS, values)
     out = run_micropython(
         "from firmware import saved_params\nfrom firmware.protocol import PARAMS\n"
-        "got, why = saved_params.load(%r, PARAMS)\nprint(why, got[2])\n"
-        "v = [r[1] for r in PARAMS]\nv[3] = 4000\nsaved_params.save(%r, PARAMS, v)\n" % (a, b)).stdout.split()
+        "from firmware.records import FileRecord\n"
+        "got, why = saved_params.load(FileRecord(%r), PARAMS)\nprint(why, got[2])\n"
+        "v = [r[1] for r in PARAMS]\nv[3] = 4000\nsaved_params.save(FileRecord(%r), PARAMS, v)\n" % (a, b)).stdout.split()
     assert out == ["None", "3000"]
-    assert saved_params.load(b, PARAMS)[0][3] == 4000
+    assert saved_params.load(FileRecord(b), PARAMS)[0][3] == 4000
 
 
 # --- host params on the virtual board ---------------------------------------------------------
@@ -206,7 +208,7 @@ def test_a_save_whose_file_does_not_read_back_is_refused_and_keeps_the_old_one(t
     path = str(tmp_path / "params.txt")
     values = list(DEFAULTS)
     values[0] = 900
-    saved_params.save(path, PARAMS, values)
+    saved_params.save(FileRecord(path), PARAMS, values)
     before = open(path).read()
 
     class Corrupting:
@@ -226,9 +228,9 @@ def test_a_save_whose_file_does_not_read_back_is_refused_and_keeps_the_old_one(t
         f = builtins.open(name, mode, *a, **k)
         return Corrupting(f) if "w" in mode else f
 
-    monkeypatch.setattr(saved_params, "open", corrupting_open, raising=False)
+    monkeypatch.setattr(records, "open", corrupting_open, raising=False)
     values[0] = 990
     with pytest.raises(ValueError, match="did not read back"):
-        saved_params.save(path, PARAMS, values)
+        saved_params.save(FileRecord(path), PARAMS, values)
     assert open(path).read() == before and not os.path.exists(path + ".new")
-    assert saved_params.load(path, PARAMS)[0][0] == 900
+    assert saved_params.load(FileRecord(path), PARAMS)[0][0] == 900

@@ -36,9 +36,12 @@ FLASH_BYTES = 2 * 1024 * 1024
 FS_SIZE = 1408 * 1024
 FS_OFFSET = FLASH_BYTES - FS_SIZE
 # CircuitPython's raspberrypi port keeps its CIRCUITPY FAT drive (512-byte blocks) in the second
-# MiB of a 2 MiB flash, after 1020 KiB of firmware and 4 KiB of nvm
-CIRCUITPY_FS_OFFSET = 1024 * 1024
-CIRCUITPY_FS_SIZE = 1024 * 1024
+# MiB of a 2 MiB flash, after 1020 KiB of firmware and the 4 KiB of microcontroller.nvm
+# (CIRCUITPY_FIRMWARE_SIZE, CIRCUITPY_INTERNAL_NVM_*): the flash image keeps both, from the nvm on,
+# so what the firmware keeps there (firmware/records.py) survives a restart as on a Pico
+CIRCUITPY_NVM_BYTES = 4 * 1024
+CIRCUITPY_FS_OFFSET = 1024 * 1024 - CIRCUITPY_NVM_BYTES
+CIRCUITPY_FS_SIZE = 1024 * 1024 + CIRCUITPY_NVM_BYTES
 START_TIMEOUT_S = 60
 
 
