@@ -15,7 +15,8 @@ from host.terminal import note, warn
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "fit",
-        help="fit a potentiometer calibration curve to a sweep CSV",
+        help="fit a potentiometer calibration curve to a sweep CSV (default: auto, the choice host calibrate makes; "
+        "--model bcm --order 3 is the paper's BCM); --out writes it into a calibration file",
         description="Fit a calibration curve (default: auto, the cheapest curve the firmware evaluates "
         "near the sweep's noise floor, as host calibrate chooses; --model bcm --order 3 is the paper's "
         "BCM) to a sweep CSV with columns raw,reference[,direction]. Prints the fit statistics, the "

@@ -8,7 +8,9 @@ from host.terminal import note
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("flash", help="install firmware, board file and calibration on a board (mpy-cross + mpremote)",
+    p = subparsers.add_parser("flash", help="check, then install firmware, board file and calibration on a board, atomic and verified "
+                                   "(MicroPython: mpy-cross + mpremote; CircuitPython: plain source over the REPL, or --drive "
+                                   "onto its mounted CIRCUITPY drive)",
                               description="Compile the firmware with mpy-cross for the board's architecture (CircuitPython: "
                               "its plain source), copy it with the board file and calibration through mpremote, swap it in "
                               "with atomic renames, verify CRCs, reset and check the firmware answers. Interrupting it "

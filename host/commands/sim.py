@@ -16,7 +16,8 @@ class _Stopped(Exception):
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("sim", help="start a virtual board and print its serial device path",
+    p = subparsers.add_parser("sim", help="start a virtual board and print its serial device path: the firmware on the MicroPython "
+                                   "unix port, or with --chip rp2040 on an emulated Pico (MicroPython or CircuitPython, --uf2)",
                               description="Start a virtual board behind a pseudo-terminal and print its path: by "
                               "default the MicroPython unix port running the firmware with the simulated actuator; "
                               "with --chip rp2040 an emulated Raspberry Pi Pico (the Pico's own MicroPython, --uf2, "

@@ -13,7 +13,7 @@ HOST = Path(host.__file__).resolve().parent
 LAYERS = ("fitting", "calibration", "link", "guided", "experiments", "api", "commands")
 # outside the layer packages: shared by all (errors, terminal) or the command line itself
 SHARED = {"host", "host.errors", "host.terminal"}
-COMMAND_LINE = {"host.cli", "host.__main__"}
+COMMAND_LINE = {"host.cli", "host.__main__", "host.command_table"}
 
 
 def module_name(path):
