@@ -11,6 +11,9 @@ it fits a 1 kHz period on a Cortex-M0 with room to spare (bench/bench_mcu.py, do
 Every counter in it wraps or saturates inside 31 bits, so it runs for any uptime. It times
 itself: the longest step since boot and the overruns (a step that started at least half a period
 late, or ran for a whole period) are in status().
+
+The step's choices carry a tag ([force-band], [pos-park], ...) and one line; why each was made,
+with the measurements behind it, is in docs/firmware.md, "The step's choices", under that tag.
 """
 
 from array import array
@@ -48,7 +51,7 @@ P_SLOW_ZONE = const(12)
 P_DEFL_RATE = const(13)
 P_STOP_MARGIN = const(14)
 P_POS_DEADBAND = const(15)
-_MASK = const(0x3FFFFFFF)  # t_us, steps and tick differences wrap at 2**30
+_MASK = const(0x3FFFFFFF)  # [wrap] t_us, steps and tick differences wrap at 2**30
 
 # [sign-fix] (docs/firmware.md, Viper idioms): a word that may be negative is read as ((v + _B29) & _M30) - _B29
 _B29 = const(536870912)
@@ -258,26 +261,16 @@ class Controller:
             if mode == OPEN_LOOP:
                 cmd = ((c[TARGET] + _B29) & _M30) - _B29
             elif mode == POSITION:
-                # With the block's friction calibrated, the spring must push with at least that
-                # force before the block moves at all; below it the PI alone leaves the block
-                # stuck short of the target while the integral creeps (1.1 N of friction: 60-80 um
-                # short for seconds). So outside a small deadband the duty that holds the spring at
-                # the friction force is added in the direction of the (filtered) error, and inside
-                # it the loop neither pushes nor integrates: the block stays where friction holds
-                # it, and noise cannot walk the integral into a limit cycle.
+                # [pos-friction] outside a deadband, the friction's duty added toward the target
                 e = (((c[TARGET] + _B29) & _M30) - _B29) - d2
-                # kept x16 with rounding: a plain ef += (e - ef) >> 4 floors, and stalls up to
-                # 15 um below a rising error while it follows a falling one (a -7.5 um bias)
+                # [pos-filter] the error low-passed over 16 steps, kept x16 with rounding
                 acc = ((c[EF] + _B29) & _M30) - _B29
                 acc = acc + e - ((acc + 8) >> 4)
                 c[EF] = acc  # |acc| <= 16 * 131070 < 2**22
                 ef = (acc + 8) >> 4
                 ki = p[P_KI_POS]
                 if ffd:
-                    # Parked once the filtered error has stayed inside the deadband for PARK_STEPS
-                    # (a block passing through the target at speed is not parked, or it coasts
-                    # on past it), unparked only when it leaves three times that, so that noise at
-                    # the edge cannot toggle the push. Inside the band the push is off.
+                    # [pos-park] parked after _PARK_STEPS inside the band, unparked beyond 3x it
                     db = p[P_POS_DEADBAND]
                     aef = ef if ef >= 0 else -ef
                     inside = c[PARKED]
@@ -300,16 +293,8 @@ class Controller:
                 elif cmd < -lim:
                     cmd = -lim
             else:
-                # With the block's friction h calibrated, the load's force only moves once the
-                # spring force leaves a band 2h wide around it: to lower it the spring works from
-                # the band's lower edge (target - h), to raise it from the upper one. Once the
-                # load-force estimate is within h/32 of the target the spring parks in the
-                # middle of the band (the target itself), h away from both edges, so that noise
-                # can no longer slide the block and the choice cannot chatter. The estimate
-                # stops where it crossed that tolerance, short of the target by up to h/32,
-                # while the load ends where the spring's last peak at the edge pushed it (beyond
-                # the target): h/16 left them 1-2 % of a 5 N step apart on 1 N of friction
-                # (bench/bench_force_steps_offline.py, docs/robustness.md).
+                # [force-band] the spring driven to the band edge (target -+ h) from which the
+                # load's force moves toward the target; within h/32 of it, parked at the target
                 fs = ptr32(self.force_set)
                 e = (((fs[3] + _B29) & _M30) - _B29) - force
                 tol = fric >> 5
@@ -319,13 +304,7 @@ class Controller:
                 elif e > tol:
                     fdir = -1
                 c[FDIR] = fdir
-                # The setpoint ramps (defl_rate_um per step, ~25 N/s by default) so that the block
-                # slides quasi-statically: the friction model holds for a block that comes to
-                # rest under a slowly changing force, not for one that hits its load at speed.
-                # It waits while it leads the measured deformation by _DEFL_LEAD: a block sliding
-                # free (a slack fibre) keeps the spring at the friction force however far the
-                # setpoint runs, and the integral wound up meanwhile slams the spring past its
-                # goal when the block meets the load (seen offline: 6.6 N for a 5 N step).
+                # [force-ramp] the setpoint ramps, and waits while it leads the spring by _DEFL_LEAD
                 sp = ((c[DEFL_SP] + _B29) & _M30) - _B29
                 goal = ((fs[fdir + 1] + _B29) & _M30) - _B29
                 rate = p[P_DEFL_RATE]
@@ -340,13 +319,8 @@ class Controller:
                 else:
                     sp = goal
                 c[DEFL_SP] = sp
-                # Holding its goal, the loop answers the pots' noise by moving the spring, and the
-                # block follows the spring's extremes, which the estimate's 64-step average does
-                # not see. Half the gains there move it less (seed 1007's holds: 28-54 mN sigma
-                # against 45-67; bench/bench_force_steps_offline.py --trace); the full gains stay
-                # for getting there and for the transients after it. (A quarter did better on
-                # average but worse on a stiff spring that lifts off, docs/robustness.md.) The PI
-                # keeps its integral in duty, so changing ki does not move the output.
+                # [force-hold] half the gains while holding the goal (the integral is in duty:
+                # changing ki does not move the output)
                 kp = p[P_KP_FORCE]
                 ki = p[P_KI_FORCE]
                 err = sp - defl
@@ -355,12 +329,7 @@ class Controller:
                     ki = ki >> _HOLD_SHIFT
                 cmd = int(self._pi_update(err, kp, ki, p[P_OUT_LIMIT], p[P_INT_LIMIT]))
             if has_meas:
-                # Soft stroke limits on the block's position (apply_params: the parameters, kept
-                # off the calibrated end stops): toward an end, |duty| is capped at DUTY_MAX *
-                # room / slow_zone_um, so a fast approach slows over the last slow_zone_um and
-                # stops at the limit, while a smaller command (a loop holding a target inside the
-                # zone) passes unchanged. The nut needs no limit of its own: it moves inside the
-                # block's cavity.
+                # [stroke-cap] toward a soft stroke limit |duty| <= DUTY_MAX * room / slow_zone_um
                 room = 1
                 if cmd > 0:
                     room = (((c[LIM_HI] + _B29) & _M30) - _B29) - d2
@@ -390,7 +359,7 @@ class Controller:
         n = c[STEPS]
         c[STEPS] = 0 if n == _MASK else n + 1
         t = c[T_US]
-        if t > _MASK - period:  # t + period would reach 2**30: wrap without forming it
+        if t > _MASK - period:  # [wrap] t + period would reach 2**30: wrap without forming it
             t = t - (_MASK - period) - 1
         else:
             t = t + period

@@ -21,7 +21,7 @@ except ImportError:  # CPython
 
 # the record's size: len(protocol.FIELDS) words (a constant, for the viper code)
 RECORD_WORDS = const(12)
-_MASK = const(0x3FFFFFFF)  # counters wrap inside the 31-bit small-int range of 32-bit boards
+_MASK = const(0x3FFFFFFF)  # [wrap] the ring's counters wrap inside 31-bit small ints
 
 # Ring.st
 HEAD = const(0)  # records written, mod 2**30; only the writer changes it

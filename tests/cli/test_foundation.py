@@ -61,3 +61,18 @@ def test_the_readme_command_table_is_the_one_the_parser_makes():
     made = command_table.table()
     sub = next(a for a in build_parser()._actions if a.dest == "command")
     assert all("| `host %s" % name in made for name in sub.choices)  # every command has its row
+
+
+def test_every_tag_in_the_firmware_is_explained_in_docs_firmware_md():
+    """The firmware says why once, in docs/firmware.md under a tag, and carries the tag and one
+    line (issue 27): a tag in the code with no entry there, or an entry no code carries, fails."""
+    import re
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    used = set()
+    for path in (root / "firmware").glob("*.py"):
+        used |= set(re.findall(r"#\s*\[([a-z]+(?:-[a-z]+)*)\]", path.read_text()))
+    explained = set(re.findall(r"^- \*\*\[([a-z-]+)\]\*\*", (root / "docs" / "firmware.md").read_text(), re.M))
+    assert used and used == explained, "in the code only: %s; in docs/firmware.md only: %s" % (
+        sorted(used - explained), sorted(explained - used))
