@@ -8,8 +8,11 @@ so the firmware verifies exactly what was written and a person can read and diff
 Writes are atomic: the whole text is serialised first, then written to a temporary file in the
 same directory, flushed, fsync'ed and moved over the old file with os.replace (and the directory
 fsync'ed), so a crash or an error at any point leaves either the old file or the new one, never a
-mix. `update_section` lets each calibration step (pots, then Df, then force) add its section to
-the existing file without losing the others.
+mix. CalibrationFile is the one way the host's commands change a file: each change is one such
+write of the whole document with the other sections kept, and it owns the rules of a change
+(new pot curves leave out what was measured through the old ones), the CRC and the dated copy of
+the file as it was. write_calibration alone makes a whole new document (tests, benches, the
+experiments' derived files).
 """
 
 import dataclasses
@@ -173,32 +176,16 @@ def read_calibration(path):
     return body
 
 
-def update_section(path, name, section, board=None, pots=None):
-    """Set section `name` of the file at `path` (created if missing), keeping all the others.
-
-    A corrupt existing file is refused (UserError), never silently replaced. `board` replaces
-    the board identity when given; `pots` ({"pot1": id, ...}) is merged into the file's. A pot
-    section and the file's `pots` entry for it name the same pot: a section without a pot_id
-    takes the one the file records (a refit of the same pot), and one with a pot_id records it.
-    """
+def _set_section(doc, name, section):
+    """Section `name` of payload `doc` set to `section` (None: removed). A pot section and the
+    document's `pots` entry for it name the same pot: a section without a pot_id takes the one the
+    document records (a refit of the same pot), and one with a pot_id records it."""
     if name not in SECTIONS:
         raise UserError("unknown calibration section %r (known: %s)" % (name, ", ".join(SECTIONS)))
-    doc = read_calibration(path) if Path(path).exists() else new_document(board, pots)
-    if board is not None:
-        doc["board"] = board
-    if pots:
-        doc["pots"] = dict(doc.get("pots") or {}, **pots)
-    set_section(doc, name, section)
-    doc["date"] = now_iso()
-    write_calibration(path, doc)
-    return doc
-
-
-def set_section(doc, name, section):
-    """Section `name` of payload `doc` set to `section`. A pot section and the document's `pots`
-    entry for it name the same pot: a section without a pot_id takes the one the document
-    records (a refit of the same pot), and one with a pot_id records it."""
-    if name in POT_SECTIONS and section is not None:
+    if section is None:
+        doc.pop(name, None)
+        return
+    if name in POT_SECTIONS:
         known = (doc.get("pots") or {}).get(name)
         if section.get("pot_id") is None and known is not None:
             section = dict(section, pot_id=known)
@@ -207,36 +194,71 @@ def set_section(doc, name, section):
     doc[name] = section
 
 
+# measured through the pot curves: the end stops in their frame of positions, the rest through D1 and D2
 MEASURED_THROUGH_POTS = ("df", "force", "force_inverse", "friction", "stroke")
 
 
-def for_new_pots(old, board=None):
-    """The document new pot curves start from: `old`'s pot ids and nothing that was measured
-    through its pot curves (Df, the force model, the friction, the end stops). Returns it and the
-    names of those sections `old` had."""
-    doc = new_document(board=board)
-    doc["pots"] = dict((old or {}).get("pots") or {})
-    return doc, [name for name in MEASURED_THROUGH_POTS if (old or {}).get(name)]
+class CalibrationFile:
+    """The calibration file at `path`; the one writer of it for the host's commands."""
 
+    def __init__(self, path):
+        self.path = Path(path)
+        self.backup = None  # the dated copy keep_previous made
+        self.left_out = []  # what the last set_sections left out of the file (new pot curves)
 
-def write_pot(path, pot, fit, adc_bits, pot_id=None, board=None, rising=True):
-    """Write FitResult `fit` as section `pot` of the calibration file at `path` (created if
-    missing, the other sections kept), with the pot's and the board's identity when given;
-    returns the file's CRC, the one the board will check. A BCM of degree below 3 is written
-    after exact degree elevation, since the firmware evaluates degree 3 (bcm3)."""
-    from host.fitting.rational_bezier import elevate
+    def exists(self):
+        return self.path.exists()
 
-    if fit.model == "bcm" and fit.order < 3:
-        fit = dataclasses.replace(fit, order=3, coefficients=elevate(fit.coefficients, 3),
-                                  notes=fit.notes + ["degree %d elevated to 3 (same curve)" % fit.order])
-    update_section(path, pot, pot_section(fit, adc_bits, pot_id=pot_id, rising=rising), board=board)
-    return parse_document(Path(path).read_text())[1]
+    def read(self):
+        """The verified payload (UserError when the file is missing or unusable)."""
+        return read_calibration(self.path)
+
+    def keep_previous(self):
+        """Copy the file as it is now to PATH.YYYYMMDD-HHMMSS.bak beside it, once for this object:
+        the copy's path when this call made it, else None (no file, or kept already)."""
+        if self.backup is not None or not self.path.is_file():
+            return None
+        self.backup = keep_dated_copy(self.path)
+        return self.backup
+
+    def set_sections(self, sections, board=None, date=None, new_pots=False):
+        """Set `sections` ({name: section, or None to remove it}) in one atomic write, the file's
+        other sections kept (a missing file starts empty; a corrupt one is refused, UserError,
+        unless new pot curves replace it after keep_previous kept it aside). `board` replaces the board's name when given; `date` (default now) is the
+        file's. Pot curves among `sections` leave out the end stops measured in the old curves'
+        frame of positions (limits from them could sit past a stop); with `new_pots` (new pot
+        curves, which a full calibration measures the rest through again) also Df, the force model
+        and the friction. `left_out` names what was left out. Returns the CRC the board checks."""
+        try:
+            doc = self.read() if self.exists() else new_document(board)
+        except UserError:
+            if not (new_pots and self.backup is not None):
+                raise
+            doc = new_document(board)  # new pot curves replace an unreadable file kept aside
+        if board is not None:
+            doc["board"] = board
+        self.left_out = []
+        if any(name in POT_SECTIONS for name in sections):
+            for name in MEASURED_THROUGH_POTS if new_pots else ("stroke",):
+                if name not in sections and doc.get(name) is not None:
+                    self.left_out.append(name)
+                    doc.pop(name)
+        for name, section in sections.items():
+            _set_section(doc, name, section)
+        doc["date"] = date or now_iso()
+        return write_calibration(self.path, doc)
 
 
 def pot_section(fit, adc_bits, pot_id=None, max_error_um=None, rising=True):
     """A pot section from a FitResult (x in ADC codes, y in mm): float and fixed-point forms.
     `rising` (the default) refuses a curve whose integer positions fall anywhere, which a board
-    refuses at boot; False writes any curve (`host fit --force`, file-format tests)."""
+    refuses at boot; False writes any curve (`host fit --force`, file-format tests). A BCM of
+    degree below 3 is written after exact degree elevation, since the firmware evaluates degree 3."""
+    from host.fitting.rational_bezier import elevate
+
+    if fit.model == "bcm" and fit.order < 3:
+        fit = dataclasses.replace(fit, order=3, coefficients=elevate(fit.coefficients, 3),
+                                  notes=fit.notes + ["degree %d elevated to 3 (same curve)" % fit.order])
     try:
         kind, fixed = export_pot(fit, adc_bits, max_error_um, rising=rising)
     except ValueError as e:

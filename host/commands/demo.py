@@ -42,7 +42,7 @@ def _row(name, r, floors):
 
 def _calibration(out_dir, fit, sweep, say):
     """Write both pot sections from the chosen fit; returns (path, crc, fixed_check) or a reason."""
-    from host.calibration.file import read_calibration, write_pot
+    from host.calibration.file import CalibrationFile, pot_section
     from host.fitting.sweep import adc_bits_of
 
     path = out_dir / "calibration.json"
@@ -52,12 +52,12 @@ def _calibration(out_dir, fit, sweep, say):
     try:
         if path.exists():
             path.unlink()  # a demo starts from nothing, never from an older run's sections
-        for pot in ("pot1", "pot2"):
-            crc = write_pot(path, pot, fit, bits)
+        cal = CalibrationFile(path)
+        crc = cal.set_sections(dict((pot, pot_section(fit, bits)) for pot in ("pot1", "pot2")))
     except UserError as exc:
         return str(exc)
     say("wrote %s (crc32 %08x)" % (path, crc))
-    return path, crc, read_calibration(path)["pot1"].get("fixed_check")
+    return path, crc, cal.read()["pot1"].get("fixed_check")
 
 
 def run(args):

@@ -79,7 +79,7 @@ def report(result, sweep, floors, unit, reason=None):
 
 
 def run(args):
-    from host.calibration.file import keep_dated_copy, write_pot
+    from host.calibration.file import CalibrationFile, pot_section
     from host.fitting.sweep import adc_bits_of, load_sweep
 
     if args.model == "auto":  # auto chooses the model and its order: ignoring these would mislead
@@ -128,10 +128,15 @@ def run(args):
             raise UserError("raw does not look like ADC codes; give --adc-bits to write a calibration file")
         say("writing %s section of %s (%d-bit ADC)" % (args.pot, args.out, bits))
         try:
-            backup = keep_dated_copy(args.out)  # never a lost calibration: the file as it was, beside it
+            cal = CalibrationFile(args.out)
+            section = pot_section(result, bits, pot_id=args.pot_id, rising=not args.force)
+            backup = cal.keep_previous()  # never a lost calibration: the file as it was, beside it
             if backup is not None:
                 say("kept the previous calibration as %s" % backup)
-            crc = write_pot(args.out, args.pot, result, bits, pot_id=args.pot_id, board=args.board, rising=not args.force)
+            crc = cal.set_sections({args.pot: section}, board=args.board)
+            if cal.left_out:
+                warn("%s left out of %s: measured with the old %s curve (kept in %s)"
+                     % (", ".join(cal.left_out), args.out, args.pot, backup))
         except OSError as exc:
             raise UserError("cannot write calibration %s: %s" % (args.out, exc)) from None
         except (ValueError, OverflowError) as exc:  # no inf or NaN ever reaches a file

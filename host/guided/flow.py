@@ -3,10 +3,12 @@
 Nothing is written before a step is accepted. Before the first accepted step changes an
 existing calibration file, the file is copied aside with the date in its name
 (calibration.json.20261124-001500.bak), so no run, however it ends, loses a calibration. Then
-the accepted sections are written one by one (host.calibration.file: update_section, atomic),
-the file is flashed and the firmware must report its CRC before the next step starts. When a
-full run accepts new pot curves, the file's Df and force sections go with the old curves they
-were measured through (the backup keeps them); single steps update only their own sections.
+each accepted step's sections are written in one atomic write (host.calibration.file.
+CalibrationFile, which also owns what a change leaves out), the file is flashed and the firmware
+must report its CRC before the next step starts. When a full run accepts new pot curves, the
+file's Df, force, friction and end stops go with the old curves they were measured through (the
+backup keeps them); a single `pots` step leaves out only the end stops (their frame moved), and
+the other single steps change only their own sections.
 An interrupted or failed step leaves the file as the last accepted step left it.
 
 The bringup (host/guided/bringup.py: wiring, directions, pot assignment) is not a calibration
@@ -20,8 +22,7 @@ import json
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from host.calibration.file import (POT_SECTIONS, for_new_pots, keep_dated_copy, read_calibration, set_section,
-                                   update_section, write_calibration)
+from host.calibration.file import CalibrationFile
 from host.errors import UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.guided.checks import Limits
@@ -118,7 +119,7 @@ def run_bringup(session, rig, prompter, opts, alone, log=None):
     return outcome
 
 
-def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
+def _trim_friction(session, rig, prompter, opts, outcome, cal, board_name):
     """The accepted force step trimmed in closed loop (host/guided/friction_trim.py): its friction,
     then F0 by what the holds leave (host/fitting/force_correction.py); the sections rewritten and
     flashed again, the lines added to the step's. The identified calibration is already written
@@ -140,23 +141,21 @@ def _trim_friction(session, rig, prompter, opts, outcome, path, board_name):
         outcome.lines.append("force: friction not trimmed (%s); h stays %.3f N as identified" % (exc, identified["friction_n"]))
         prompter.say("  " + outcome.lines[-1])
         return
-    identified_doc = read_calibration(path)
+    identified_doc = cal.read()
     sections, lines = trimmed_sections(identified_doc, trim)
 
     date = now_iso()  # once: the same sections make the same file, and the same CRC on the board
 
     def install(chosen):  # one write: F0 and its inverse must not disagree on the board
-        doc = dict(identified_doc, **chosen)
-        doc["date"] = date
-        if board_name is not None:
-            doc["board"] = board_name
-        write_calibration(path, doc)
-        session.flash(path)
+        cal.set_sections(chosen, board=board_name, date=date)
+        session.flash(cal.path)
 
     if "force" in sections:  # F0 corrected: kept only if the check's holds say it helps
         install(sections)
         with_mn = check_rms_mn(session, rig, prompter, opts, outcome.data, "F0 check, corrected")
-        h_only = {"friction": sections["friction"]}
+        # the trimmed h with F0 and its inverse as identified
+        h_only = dict((name, identified_doc.get(name)) for name in sections if name != "friction")
+        h_only["friction"] = sections["friction"]
         install(h_only)
         without_mn = check_rms_mn(session, rig, prompter, opts, outcome.data, "F0 check, as identified")
         figures = "rms estimate - gauge %s mN with it, %s mN without, at %s of each side's range" % (
@@ -186,6 +185,7 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
     from host.guided.pot_calibration import calibrate_pots
 
     path = Path(opts.out)
+    cal = CalibrationFile(path)
     follow_the_actuator(opts, session)
     if rig is not None:
         rig.ends = tuple("%g mm" % v for v in opts.stroke)
@@ -200,18 +200,15 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
     full = tuple(steps) == STEPS
     if "pots" not in steps and not path.exists():
         raise UserError("%s does not exist: calibrate the pots first (host calibrate pots)" % path)
-    backed_up = [False]
 
     def keep_previous():
-        if backed_up[0] or not path.exists():
-            return
-        backup = keep_dated_copy(path)
-        backed_up[0] = True
-        prompter.say("  kept the previous calibration as %s" % backup)
+        backup = cal.keep_previous()
+        if backup is not None:
+            prompter.say("  kept the previous calibration as %s" % backup)
 
     if path.exists():
         try:
-            read_calibration(path)
+            cal.read()
         except UserError:
             if not full:  # a step updates the file's other sections: refuse before measuring
                 raise
@@ -247,38 +244,18 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
                 log.done(outcome, accepted=False)
             continue
         keep_previous()
-        if full and step == "pots":
-            # new pot curves: the Df and force sections were measured through the old ones
-            old = {}
-            try:
-                old = read_calibration(path) if path.exists() else {}
-            except UserError:
-                pass
-            doc, dropped = for_new_pots(old, board=board_name)
-            dropped = [n for n in dropped if n not in outcome.sections]
-            if dropped:
-                prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
-                             % (", ".join(dropped), path))
-            for name, section in outcome.sections.items():
-                if name in POT_SECTIONS:
-                    set_section(doc, name, section)
-            write_calibration(path, doc)
-            for name, section in outcome.sections.items():
-                if name not in POT_SECTIONS:
-                    update_section(path, name, section, board=board_name)
-        else:
-            for name, section in outcome.sections.items():
-                update_section(path, name, section, board=board_name)
-            if step == "pots" and "stroke" not in outcome.sections and (read_calibration(path).get("stroke")):
-                # the old end stops were measured in the old curves' frame: limits from them could sit past a stop
-                update_section(path, "stroke", None, board=board_name)
-                prompter.say("  the end stops measured with the old pot curves are left out (the soft limits are the "
-                             "stroke parameters alone until a pots step measures them again)")
+        cal.set_sections(outcome.sections, board=board_name, new_pots=full)
+        if full and cal.left_out:
+            prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
+                         % (", ".join(cal.left_out), path))
+        elif cal.left_out:
+            prompter.say("  the end stops measured with the old pot curves are left out (the soft limits are the "
+                         "stroke parameters alone until a pots step measures them again)")
         prompter.say("  wrote %s to %s" % (", ".join(outcome.sections), path))
         if opts.flash:
             session.flash(path)
         if step == "force":
-            _trim_friction(session, rig, prompter, opts, outcome, path, board_name)
+            _trim_friction(session, rig, prompter, opts, outcome, cal, board_name)
         accepted[step] = outcome
         if log:
             log.done(outcome, accepted=True)

@@ -11,9 +11,10 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from firmware.calibration import CalibrationError, convert, load_calibration, payload_crc
+from firmware.calibration import CalibrationError, convert, load_calibration, parse_document, payload_crc
 from firmware.poly_fixed import poly
-from host.calibration.file import new_document, poly_section, pot_section, read_calibration, update_section, write_calibration
+from host.calibration.file import (CalibrationFile, new_document, poly_section, pot_section, read_calibration,
+                                   stroke_section, write_calibration)
 from host.errors import UserError
 from host.fitting.fit_result import FitResult
 from host.calibration.fixed_export import bcm_float
@@ -232,35 +233,68 @@ def test_killed_writer_leaves_the_old_file(tmp_path):
 
 
 def test_pot_identity_follows_its_section(tmp_path):
-    path = tmp_path / "cal.json"
-    update_section(path, "pot1", dict(POT1, pot_id="S-1"), board="rig-2")
-    update_section(path, "pot1", dict(POT1, pot_id=None))  # a refit of the same pot keeps its id
-    doc = read_calibration(path)
+    cal = CalibrationFile(tmp_path / "cal.json")
+    cal.set_sections({"pot1": dict(POT1, pot_id="S-1")}, board="rig-2")
+    cal.set_sections({"pot1": dict(POT1, pot_id=None)})  # a refit of the same pot keeps its id
+    doc = cal.read()
     assert doc["board"] == "rig-2" and doc["pots"] == {"pot1": "S-1"} and doc["pot1"]["pot_id"] == "S-1"
-    update_section(path, "pot1", dict(POT1, pot_id="S-9"))  # a new pot replaces it
-    doc = read_calibration(path)
+    cal.set_sections({"pot1": dict(POT1, pot_id="S-9")})  # a new pot replaces it
+    doc = cal.read()
     assert doc["pots"] == {"pot1": "S-9"} and doc["pot1"]["pot_id"] == "S-9" and doc["board"] == "rig-2"
 
 
-def test_update_section_keeps_the_others(tmp_path):
+def test_a_change_keeps_the_other_sections(tmp_path):
     path = tmp_path / "cal.json"
-    update_section(path, "pot1", POT1, board="pico", pots={"pot1": "pot-A"})
-    update_section(path, "pot2", POT2, pots={"pot2": "pot-B"})
-    update_section(path, "df", DF_SECTION)
+    cal = CalibrationFile(path)
+    cal.set_sections({"pot1": dict(POT1, pot_id="pot-A")}, board="pico")
+    cal.set_sections({"pot2": dict(POT2, pot_id="pot-B")})
+    cal.set_sections({"df": DF_SECTION})
     force = poly_section([0.65, 12.37, 2.08], (-2.0, 6.0), 1000, 1000, ("um", "mN"))
-    update_section(path, "force", force)
+    crc = cal.set_sections({"force": force})
     doc = read_calibration(path)
     assert doc["board"] == "pico" and doc["pots"] == {"pot1": "pot-A", "pot2": "pot-B"}
     assert [doc[name]["fixed"] for name in ("pot1", "pot2", "df", "force")] == [POT1["fixed"], POT2["fixed"], DF_SECTION["fixed"], force["fixed"]]
-    cal = load_calibration(str(path))
-    assert poly(2000, cal.force) == round(1000 * (0.65 * 4 + 12.37 * 2 + 2.08))
+    assert crc == parse_document(path.read_text())[1]  # the CRC the board checks
+    cal_fw = load_calibration(str(path))
+    assert poly(2000, cal_fw.force) == round(1000 * (0.65 * 4 + 12.37 * 2 + 2.08))
     with pytest.raises(UserError, match="unknown calibration section"):
-        update_section(path, "pot3", POT1)
+        cal.set_sections({"pot3": POT1})
     path.write_bytes(path.read_bytes().replace(b"pico", b"pica"))
     corrupt = path.read_bytes()
     with pytest.raises(UserError, match="CRC"):
-        update_section(path, "force_inverse", force)
+        cal.set_sections({"force_inverse": force})
     assert path.read_bytes() == corrupt, "a corrupt file is reported, never silently replaced"
+
+
+def test_new_pot_curves_leave_out_what_was_measured_through_the_old_ones(tmp_path):
+    """The file owns the rule: new pot curves leave out the end stops (their frame of positions
+    moved); new pots (a full calibration) also Df, the force model and the friction."""
+    path = tmp_path / "cal.json"
+    force = poly_section([0.65, 12.37, 2.08], (-2.0, 6.0), 1000, 1000, ("um", "mN"))
+    full = {"pot1": POT1, "pot2": POT2, "df": DF_SECTION, "force": force, "stroke": stroke_section(0.1, 59.9)}
+    cal = CalibrationFile(path)
+    cal.set_sections(full)
+    cal.set_sections({"pot1": POT1})  # a refit of the same pot
+    assert cal.left_out == ["stroke"] and set(cal.read()) >= {"df", "force"} and "stroke" not in cal.read()
+    cal.set_sections(full)
+    cal.set_sections({"pot1": POT1, "pot2": POT2, "stroke": stroke_section(0.2, 59.8)}, new_pots=True)
+    doc = cal.read()
+    assert cal.left_out == ["df", "force"] and "df" not in doc and "force" not in doc
+    assert doc["stroke"]["fixed"] == stroke_section(0.2, 59.8)["fixed"]  # measured with the new curves: kept
+    cal.set_sections({"df": DF_SECTION})
+    assert cal.left_out == [] and "df" in cal.read()  # no pot curve, nothing left out
+
+
+def test_new_pots_replace_an_unreadable_file_only_once_it_is_kept_aside(tmp_path):
+    path = tmp_path / "cal.json"
+    path.write_text("not a calibration")
+    cal = CalibrationFile(path)
+    with pytest.raises(UserError):
+        cal.set_sections({"pot1": POT1}, new_pots=True)
+    backup = cal.keep_previous()
+    assert backup.read_text() == "not a calibration" and cal.keep_previous() is None  # once
+    cal.set_sections({"pot1": POT1}, new_pots=True)
+    assert cal.read()["pot1"]["fixed"] == POT1["fixed"]
 
 
 def test_firmware_loader_under_micropython(tmp_path):

@@ -158,6 +158,35 @@ def test_out_onto_an_existing_calibration_keeps_the_previous_one_beside_it(tmp_p
     assert path.read_bytes() not in kept.values()  # each replaced file kept, the present one not
 
 
+def test_out_with_a_new_pot_curve_leaves_out_the_old_end_stops_and_says_so(tmp_path, capsys):
+    """The calibration file's rule (host.calibration.file.CalibrationFile), the same as a `pots`
+    step's: end stops measured in the old curve's frame are left out, with a warning."""
+    from host.calibration.file import CalibrationFile, stroke_section
+
+    path = tmp_path / "calib.json"
+    _json(capsys, EXAMPLE, "--model", "bcm", "--out", str(path))
+    CalibrationFile(path).set_sections({"stroke": stroke_section(0.1, 59.9)})
+    assert main(["fit", EXAMPLE, "--model", "bcm", "--order", "2", "--out", str(path)]) == 0
+    assert "stroke" not in CalibrationFile(path).read()
+    assert "stroke left out of" in capsys.readouterr().err
+
+
+def test_only_the_calibration_file_object_writes_calibration_files():
+    """Issue 27: the host's commands change a calibration file through CalibrationFile alone;
+    write_calibration (the atomic write under it) makes whole new documents only for the
+    experiments' derived files."""
+    import re
+    from pathlib import Path
+
+    import host
+
+    root = Path(host.__file__).parent
+    allowed = {root / "calibration" / "file.py", root / "experiments" / "variants.py"}
+    callers = [str(p.relative_to(root)) for p in root.rglob("*.py")
+               if p not in allowed and re.search(r"\bwrite_calibration\(|\bkeep_dated_copy\(.*cal", p.read_text())]
+    assert not callers, callers
+
+
 def test_non_adc_sweep_needs_adc_bits_for_out(tmp_path, capsys):
     raw = np.linspace(0.1, 3.2, 40)
     text = "raw,reference\n" + "".join("%.4f,%.4f\n" % (r, 18 * r) for r in raw)

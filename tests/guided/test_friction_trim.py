@@ -83,7 +83,7 @@ def _trim_and_check(tmp_path, monkeypatch, rms_with, rms_without):
     from types import SimpleNamespace
 
     import host.guided.friction_trim as friction_trim
-    from host.calibration.file import read_calibration
+    from host.calibration.file import CalibrationFile, read_calibration
     from host.guided import flow
     from host.calibration.file import force_table_section
     from testkit.model import sim_board, spring_forces, write_model_calibration
@@ -108,7 +108,7 @@ def _trim_and_check(tmp_path, monkeypatch, rms_with, rms_without):
     opts = flow.Options(out=str(path))
     outcome = SimpleNamespace(sections={"friction": {"friction_n": 0.40}}, data={"friction_n": 0.40}, lines=[])
     identified = read_calibration(path)["force"]
-    flow._trim_friction(board, None, prompter, opts, outcome, path, None)
+    flow._trim_friction(board, None, prompter, opts, outcome, CalibrationFile(path), None)
     return read_calibration(path), identified, board.flashed, said
 
 
