@@ -32,6 +32,8 @@ Diagnostics (each changes what is run, and says so in the tally line):
     --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280
     --oversample N       every board read N times a step (the run's own value is used otherwise)
     --noise LSB          both pots' noise set to LSB (what the loop does with quieter pots)
+    --loop-hz HZ         every board's loop rate (CircuitPython's 250 Hz); settle and hold keep
+                         their seconds
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
 `bench/bench_robustness.py --draws 8 --out out/robF` writes).
 
@@ -106,7 +108,7 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
-DIAG = {"oversample": None, "noise": None}  # --oversample, --noise
+DIAG = {"oversample": None, "noise": None, "loop_hz": None}  # --oversample, --noise, --loop-hz
 # What the loads are: what the gauge shows (firmware_cases.BenchGauge: noise, display, zero drift,
 # tares with the fibre slack before and after), as a bench measures them; --true-load: the
 # simulator's true load, which no bench has (a diagnostic)
@@ -121,10 +123,12 @@ def as_run(runs, seed, board, tmp):
     oversample = json.load(open(row)).get("oversample") if os.path.exists(row) else None
     oversample = DIAG["oversample"] or oversample
     data = json.load(open(board))
-    if (not oversample or data.get("oversample") == oversample) and DIAG["noise"] is None:
+    if (not oversample or data.get("oversample") == oversample) and DIAG["noise"] is None and not DIAG["loop_hz"]:
         return board
     if oversample:
         data["oversample"] = oversample
+    if DIAG["loop_hz"]:
+        data["loop_hz"] = DIAG["loop_hz"]
     if DIAG["noise"] is not None:
         for pot in ("pot1", "pot2"):
             data["actuator"]["pots"][pot]["noise_lsb"] = DIAG["noise"]
@@ -407,6 +411,7 @@ def main():
                     help="diagnostic: a firmware parameter's default replaced (repeatable)")
     ap.add_argument("--oversample", type=int, help="diagnostic: reads per step on every board")
     ap.add_argument("--noise", type=float, metavar="LSB", help="diagnostic: both pots' noise, LSB")
+    ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
     ap.add_argument("--true-load", action="store_true",
                     help="diagnostic: score (and trim, refit) against the simulator's true load instead of the gauge's "
                          "readings, which is what a bench has")
@@ -425,6 +430,10 @@ def main():
     GAUGE["at"] = a.at_gauge
     DIAG["oversample"] = a.oversample
     DIAG["noise"] = a.noise
+    if a.loop_hz:
+        global SETTLE, HOLD
+        DIAG["loop_hz"] = a.loop_hz
+        SETTLE, HOLD = SETTLE * a.loop_hz // 1000, HOLD * a.loop_hz // 1000
     override_params(a.param)
     if not os.path.isdir(a.runs):
         sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
@@ -453,6 +462,7 @@ def main():
                 print_spread(per_seed)
             if worst:
                 changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
+                    (["loop %d Hz" % a.loop_hz] if a.loop_hz else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else []) + \
                     (["scored against the TRUE load"] if a.true_load else ["scored against the gauge's readings"])
                 print("tally (%s calibration%s%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
