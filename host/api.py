@@ -26,7 +26,7 @@ from firmware import protocol as P
 from host.guided.acquire import settle
 from host.link.board_client import BoardError
 from host.link.board_time import NO_DATA_S, BoardTime
-from host.link.connect import open_board
+from host.link.connect import Connection
 from host.link.board_params import read_table, set_values
 from host.errors import UserError
 from host.link.telemetry_log import Recording
@@ -104,9 +104,9 @@ class Board:
     def __init__(self, port="auto", board=None, calibration=None, load=None, require_calibration=False,
                  stop_on_exit=True, uf2=None, uncalibrated=False):
         self.stop_on_exit = stop_on_exit
-        self._opener = open_board(port, board, calibration, _load(load), uf2=uf2, ready=not uncalibrated,
-                                  require_calibration=require_calibration)
-        self.client = self._opener.__enter__()
+        self._connection = Connection(port, board, calibration, _load(load), uf2=uf2, ready=not uncalibrated,
+                                      require_calibration=require_calibration).open()
+        self.client = self._connection.client
         self._link = self.client  # a Recording while log() is active: motions stream through it
 
     @property
@@ -118,7 +118,7 @@ class Board:
     def virtual(self):
         """The virtual board behind port "sim" (VirtualBoard: its files, its load) or "sim:rp2040"
         (EmulatedPico: its rig, its actuator's state), else None."""
-        return self._opener.virtual
+        return self._connection.virtual
 
     def close(self, stop=True):
         if self.client is None:
@@ -129,7 +129,7 @@ class Board:
         except Exception:
             pass  # a board that vanished cannot be stopped from here; its host timeout will
         finally:
-            self._opener.__exit__(None, None, None)
+            self._connection.close()
             self.client = None
 
     def __enter__(self):
@@ -281,19 +281,10 @@ class Board:
     def flash(self, calibration=None, board=None):
         """Install the firmware, the board file and (optionally) a calibration on this board, as
         `host flash` does, and reconnect. Returns the firmware's status after."""
-        from host.link.board_client import BoardClient
-        from host.link.flashing import flash
-
-        port = self.client.port
-        self.client.close()
         try:
-            virtual = self.virtual is not None
-            flash(port, board or (str(self._opener.where.board_path) if virtual else None), calibration,
-                  progress=lambda text: None, ask_board=not virtual)
+            return self._connection.reflash(board, calibration)
         finally:
-            self.client = self._opener.client = BoardClient(port)
-            self._link = self.client
-        return self.client.status_info
+            self.client = self._link = self._connection.client
 
 
 @dataclass

@@ -1,7 +1,7 @@
 """`host reset`: name the latched faults, clear them, motor off and mode idle: ready to move."""
 
 from host.commands._options import add_port_arguments
-from host.link.connect import open_board
+from host.link.connect import Connection
 
 
 def add_parser(subparsers):
@@ -17,6 +17,7 @@ def cleared(board):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as board:
+    with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as connection:
+        board = connection.client
         print(cleared(board))
     return 0

@@ -2,7 +2,7 @@
 
 from host.commands._options import add_port_arguments
 from host.commands.reset import cleared
-from host.link.connect import open_board
+from host.link.connect import Connection
 
 
 def add_parser(subparsers):
@@ -16,7 +16,8 @@ def add_parser(subparsers):
 
 
 def run(args):
-    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as board:
+    with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as connection:
+        board = connection.client
         board.call("stop")
         faults = board.call("status").get("faults") or []
         if faults == ["host_timeout"]:

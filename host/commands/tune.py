@@ -6,7 +6,7 @@ import json
 from host.commands._options import add_port_arguments, ranged
 from host.errors import UserError
 from host.guided.tuning import LOOPS, tune
-from host.link.connect import open_board
+from host.link.connect import Connection
 from host.terminal import end_progress, progress_line
 
 DEFAULTS = {  # mode -> (start, step, band) in the shown unit (mm or N)
@@ -106,7 +106,8 @@ def run(args):
     def progress(i, n, gains):
         progress_line("trial %d/%d: %s" % (i + 1, n, " ".join("%s=%d" % kv for kv in gains.items())))
 
-    with open_board(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated, require_calibration=True) as board:
+    with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated, require_calibration=True) as connection:
+        board = connection.client
         if args.mode == "position":
             lo, hi = (v / 1000.0 for v in board.call("status")["stroke_um"])
             if not (lo <= start <= hi and lo <= start + step <= hi):

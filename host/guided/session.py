@@ -1,16 +1,16 @@
 """One connection to the board for a whole guided calibration, including re-flashing it.
 
-The board is opened with host.link.connect.open_port, which keeps a virtual board (`sim`) and
-its filesystem root (where the rig is mounted) alive while the client is closed for a flash.
-After each accepted step the calibration file is installed with host.link.flashing.flash
-(mpremote, CRC check, soft reset) and the firmware must answer with the file's CRC.
+The board is opened as a host.link.connect.Connection, which keeps a virtual board (`sim`) and
+its filesystem root (where the rig is mounted) alive while it re-flashes. After each accepted
+step the calibration file is installed with Connection.reflash (host flash: mpremote, CRC
+check, soft reset) and the firmware must answer with the file's CRC. The session adds what a
+calibration needs: the board file it calibrates for, and the simulated actuator if there is one.
 """
 
 from pathlib import Path
 
 from host.errors import UserError
-from host.link.board_client import BoardClient
-from host.link.connect import open_port
+from host.link.connect import Connection
 from host.link.flashing import resolve_board
 
 
@@ -20,20 +20,27 @@ class Session:
         self.calibration = Path(calibration) if calibration else None
         self.say = say
         existing = self.calibration if self.calibration and self.calibration.is_file() else None
-        self.where = open_port(port, board, existing, uf2=uf2, progress=say)
-        self.port = self.where.port
-        self.path = None
-        self.client = None
+        self.connection = Connection(port, board, existing, uf2=uf2, progress=say)
+        self.port = self.connection.where.port
         self.board_path = None
         self.board = None
 
     @property
+    def client(self):
+        """The BoardClient of the moment (a new one after each flash)."""
+        return self.connection.client
+
+    @property
+    def path(self):
+        return self.connection.path
+
+    @property
     def virtual(self):
-        return self.where.virtual
+        return self.connection.virtual
 
     @property
     def root(self):
-        return self.where.root
+        return self.connection.where.root
 
     @property
     def actuator(self):
@@ -52,15 +59,13 @@ class Session:
 
     def __enter__(self):
         try:
-            self.path = self.where.open().path
+            self.connection.open()
             if self.virtual is not None:
                 if self.root is not None:
                     self.say("virtual board started on %s (filesystem %s)" % (self.path, self.root))
                 else:
                     self.say("emulated %s started on %s" % (self.virtual.chip, self.path))
-                self.board_path, self.board = resolve_board(str(self.where.board_path))
-                self.board_path, self.board = resolve_board(str(self.where.board_path))
-            self.client = BoardClient(self.path)
+                self.board_path, self.board = resolve_board(str(self.connection.board_path))
             if self.board is None:
                 self.board_path, self.board = resolve_board(self.board_arg or self.client.status_info["board"])
         except BaseException:
@@ -74,9 +79,7 @@ class Session:
                 self.client.call("stop")
             except Exception:
                 pass
-            self.client.close()
-            self.client = None
-        self.where.close()
+        self.connection.close()
 
     def __exit__(self, *exc):
         self.close()
@@ -84,16 +87,12 @@ class Session:
     def flash(self, calibration):
         """Install `calibration` on the board; returns the CRC the firmware reports."""
         from host.calibration.file import read_calibration
-        from host.link.flashing import flash
 
         read_calibration(calibration)  # refuse a corrupt file before touching the board
         crc_file = file_crc32(calibration)
-        self.client.close()
-        self.client = None
-        status = flash(self.path, str(self.board_path), str(calibration), progress=lambda m: self.say("  flash: " + m),
-                       ask_board=False)  # this session identified the board when it opened
-        self.client = BoardClient(self.path)
-        got = self.client.status_info.get("calibration_crc")
+        status = self.connection.reflash(self.board_path, calibration, progress=lambda m: self.say("  flash: " + m),
+                                         ask_board=False)  # this session identified the board when it opened
+        got = status.get("calibration_crc")
         if got != crc_file:
             raise UserError("the board reports calibration crc %s, the file has %s" % (got, crc_file))
         self.say("  the firmware runs calibration crc %08x" % got)
@@ -103,13 +102,9 @@ class Session:
     def flash_board(self, board_path):
         """Install the firmware with board file `board_path` (the calibration on the board stays)
         and use that board file from now on; returns the firmware's status."""
-        from host.link.flashing import flash
-
-        self.client.close()
-        self.client = None
-        status = flash(self.path, str(board_path), None, progress=lambda m: self.say("  flash: " + m), ask_board=False)
+        status = self.connection.reflash(board_path, None, progress=lambda m: self.say("  flash: " + m),
+                                         ask_board=False)
         self.board_path, self.board = resolve_board(str(board_path))
-        self.client = BoardClient(self.path)
         return status
 
 

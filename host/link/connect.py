@@ -8,8 +8,9 @@ rp2040js, host/link/emulated_pico/), onto which the firmware is installed the wa
 real Pico, by `host flash` over its USB serial. Either one's serial path, rig and board file stay
 valid while clients come and go, so a guided calibration can close its client, flash the board
 and open a new one.
-`open_board(port, ...)` is open_port with a BoardClient on it (the handshake done), for the
-commands that only talk to the board; `ask_firmware(port)` is the handshake alone.
+`Connection(port, ...)` is open_port with a BoardClient on it (the handshake done), and the one
+way a command or the guided calibration talks to a board, re-flashes it and reconnects;
+`ask_firmware(port)` is the handshake alone (host ports --probe, host flash's question).
 """
 
 from pathlib import Path
@@ -152,36 +153,89 @@ def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=N
     return BoardPort(port, board, calibration, load, factory, uf2, progress, ready)
 
 
-class open_board:
-    """Context manager: a BoardClient on `port` (any form open_port takes), handshake done."""
+class Connection:
+    """One connection to a board, the one every command and the guided calibration use: the
+    resolved port (open_port: a board started for the command stays alive behind it), the
+    BoardClient on it (handshake done), and what changes it: reconnect() and reflash(). Use as a
+    context manager (it returns itself) or open()/close(); closing stops nothing on the board
+    (the caller stops what it started)."""
 
-    def __init__(self, port, board=None, calibration=None, load=None, uf2=None, ready=True, **client_options):
+    def __init__(self, port, board=None, calibration=None, load=None, uf2=None, ready=True, factory=True,
+                 progress=None, **client_options):
         """`ready`: a `sim` board of boards/sim.json starts with the shipped calibration unless
-        `calibration` is given (open_port); False: uncalibrated, as from the factory."""
-        self.where = open_port(port, board, calibration, load, uf2=uf2, ready=ready)
+        `calibration` is given (open_port); False: uncalibrated, as from the factory.
+        `client_options`: BoardClient's (check, require_calibration, ...)."""
+        self.where = open_port(port, board, calibration, load, factory=factory, uf2=uf2, progress=progress, ready=ready)
         self.options = client_options
         self.client = None
 
     @property
     def virtual(self):
-        """The virtual board behind port `sim`, else None."""
+        """The board started for this connection (VirtualBoard or EmulatedPico), else None."""
         return self.where.virtual
 
-    def __enter__(self):
-        self.where.__enter__()
+    @property
+    def path(self):
+        """The serial device (the pty of a board started for this connection)."""
+        return self.where.path
+
+    @property
+    def board_path(self):
+        """The board file a board started for this connection runs, else None."""
+        return self.where.board_path
+
+    def open(self):
+        self.where.open()
         try:
             self.client = BoardClient(self.where.path, **self.options)
         except BaseException:
             self.where.close()
             raise
+        return self
+
+    def reconnect(self):
+        """A new client on the same port (after the board restarted); returns it."""
+        if self.client is not None:
+            self.client.close()
+        self.client = None
+        self.client = BoardClient(self.where.path, **self.options)
         return self.client
 
-    def __exit__(self, *exc):
+    def reflash(self, board_path=None, calibration=None, progress=None, ask_board=None):
+        """`host flash` over this connection: the client closed, the firmware, the board file
+        (default: that of a board started for this connection) and `calibration` installed, a new
+        client. `ask_board` (default: on a real board) checks the board file against what the
+        board says it is. Returns the firmware's status after."""
+        from host.link.flashing import flash
+
+        if board_path is None and self.board_path is not None:
+            board_path = self.board_path
+        if ask_board is None:
+            ask_board = self.virtual is None
+        if self.client is not None:
+            self.client.close()
+            self.client = None
+        try:
+            flash(self.path, None if board_path is None else str(board_path),
+                  None if calibration is None else str(calibration),
+                  progress=progress or (lambda text: None), ask_board=ask_board)
+        finally:
+            self.reconnect()
+        return self.client.status_info
+
+    def close(self):
         try:
             if self.client is not None:
                 self.client.close()
+                self.client = None
         finally:
             self.where.close()
+
+    def __enter__(self):
+        return self.open()
+
+    def __exit__(self, *exc):
+        self.close()
 
 
 def ask_firmware(port):

@@ -17,7 +17,7 @@ import time
 import pytest
 
 from host.link.board_client import BoardClient
-from host.link.connect import open_board
+from host.link.connect import Connection
 from host.link.flashing import flash
 from host.link.virtual_board import VirtualBoard
 
@@ -48,7 +48,8 @@ def test_flash_commands_moves_and_streams_survive_a_busy_machine(busy_machine, c
     with VirtualBoard() as vb:
         status = flash(vb.path, "sim", calibration_file, progress=lambda s: None)
         assert status["calibration_crc"] is not None
-    with open_board("sim", calibration=calibration_file) as board:
+    with Connection("sim", calibration=calibration_file) as connection:
+        board = connection.client
         for _ in range(20):
             assert board.call("status")["faults"] == []
         from host.guided.acquire import settle
