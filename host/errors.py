@@ -9,6 +9,12 @@ class UserError(Exception):
     """An error caused by input or environment, with a message that says what to do."""
 
 
+class LinkError(UserError, TimeoutError):
+    """The link to the board failed: no reply in time, or the port vanished (unplugged). A
+    UserError, so a command says it in one line with exit status 2, and a TimeoutError (an
+    OSError), so code that waits for a board can tell it from a refusal or a bad file."""
+
+
 def os_error_line(exc):
     """The one line for an OSError that no command turned into a UserError: a serial port's says
     the board may be gone; one with a file names the file and what the system said (a full disk,

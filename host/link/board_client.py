@@ -21,7 +21,7 @@ import time
 import serial
 
 from firmware import protocol as P
-from host.errors import UserError
+from host.errors import LinkError, UserError
 from host.link.frames import FrameDecoder
 from host.link.port_advice import open_failure
 
@@ -184,8 +184,17 @@ class BoardClient:
         self._seq = (self._seq + 1) % P.SEQ_MASK  # 0xFFFF is kept for unattributed errors
         return self._seq
 
+    def _send(self, data):
+        try:
+            self.serial.write(data)
+        except OSError as exc:  # serial.SerialException is one: the port vanished
+            raise LinkError("lost the board on %s: %s (unplugged?)" % (self.port, str(exc).strip() or type(exc).__name__)) from None
+
     def _read_frames(self):
-        data = self.serial.read(max(1, self.serial.in_waiting))
+        try:
+            data = self.serial.read(max(1, self.serial.in_waiting))
+        except OSError as exc:  # serial.SerialException is one: the port vanished
+            raise LinkError("lost the board on %s: %s (unplugged?)" % (self.port, str(exc).strip() or type(exc).__name__)) from None
         self.received += len(data)
         if data and self._text is not None:
             self._text = (self._text + data)[-_TEXT_KEPT:]
@@ -199,7 +208,7 @@ class BoardClient:
 
     def request(self, name, *args, timeout=None, retries=None):
         """Send one command; return the result of its ok frame, raise BoardError on an error
-        frame and TimeoutError when no reply came: after `retries` resends when given, else
+        frame and LinkError (a TimeoutError) when no reply came: after `retries` resends when given, else
         after resending every `timeout` for the client's patience (see the module docstring).
         The command and its arguments are checked against the board's interface
         (firmware.protocol.COMMANDS) first: ValueError for one the board would refuse, before
@@ -215,7 +224,7 @@ class BoardClient:
         while retries is not None and tries <= retries or retries is None and (
                 tries == 0 or time.monotonic() - start < self.patience):
             tries += 1
-            self.serial.write(line)
+            self._send(line)
             deadline = time.monotonic() + timeout
             while time.monotonic() < deadline:
                 for frame in self._read_frames():
@@ -227,24 +236,21 @@ class BoardClient:
                     return frame.json()
         waited = time.monotonic() - start
         if self.received == heard:
-            raise TimeoutError("the board stopped answering: no reply to %s from %s in %.0f s, and nothing else came "
+            raise LinkError("the board stopped answering: no reply to %s from %s in %.0f s, and nothing else came "
                                "from it" % (name, self.port, waited))
         came = self.received - heard
         junk = self.decoder.skipped_bytes - skipped
         if junk * 2 > came:  # mostly not our frames: a slow board still sends frames
-            raise TimeoutError("no reply to %s from %s in %.0f s; what came (%d bytes) was mostly not lsea-kit frames "
+            raise LinkError("no reply to %s from %s in %.0f s; what came (%d bytes) was mostly not lsea-kit frames "
                                "(%d bytes skipped, %d frames with a bad CRC): another program on the port, a wrong "
                                "port, or a bad cable?" % (name, self.port, waited, came, junk,
                                                           self.decoder.crc_errors - bad_crc))
-        raise TimeoutError("no reply to %s from %s in %.0f s, though it kept sending (%d bytes): the board or this "
+        raise LinkError("no reply to %s from %s in %.0f s, though it kept sending (%d bytes): the board or this "
                            "computer is overloaded" % (name, self.port, waited, came))
 
     def call(self, name, *args, **kw):
-        """request() with a UserError instead of TimeoutError (for CLI commands)."""
-        try:
-            return self.request(name, *args, **kw)
-        except TimeoutError as exc:
-            raise UserError(str(exc))
+        """request(): its LinkError is a UserError too, for the CLI's one line."""
+        return self.request(name, *args, **kw)
 
     def clear_faults(self):
         """Clear the board's latched faults; returns (the faults cleared, the last fault's text),
@@ -260,7 +266,7 @@ class BoardClient:
         if time.monotonic() - self._last_heartbeat >= HEARTBEAT_S:
             self._last_heartbeat = time.monotonic()
             # Fire and forget: the reply is skipped by frames(); a lost one is harmless.
-            self.serial.write(P.format_command(self._next_seq(), "heartbeat"))
+            self._send(P.format_command(self._next_seq(), "heartbeat"))
 
     # -- telemetry ---------------------------------------------------------------------
     def frames(self, timeout=0.1):

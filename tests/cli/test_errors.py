@@ -146,3 +146,28 @@ def test_a_truncated_calibration_is_called_truncated(tmp_path, capsys):
     assert cli.main(["show", str(path)]) == 2
     err = capsys.readouterr().err
     assert "truncated" in err and "laid out" not in err, err
+
+
+def test_a_link_that_vanishes_is_a_link_error_in_one_line():
+    """The board's end of a real pseudo-terminal closes while the client waits for a reply (a
+    board unplugged mid-command): BoardClient raises LinkError, a UserError (the CLI's one line,
+    exit 2) and a TimeoutError (an OSError: code that waits can tell it from a refusal)."""
+    import os
+    import pty
+    import threading
+
+    from host.errors import LinkError, UserError
+    from host.link.board_client import BoardClient
+
+    board_end, host_end = pty.openpty()
+    name = os.ttyname(host_end)
+    client = BoardClient(name, check=False, retries=50, timeout=0.1)
+    try:
+        threading.Timer(0.3, os.close, (board_end,)).start()  # unplugged while status waits
+        with pytest.raises(LinkError) as caught:
+            client.request("status")
+        assert isinstance(caught.value, UserError) and isinstance(caught.value, TimeoutError)
+        assert str(caught.value).startswith("lost the board on %s" % name), caught.value
+    finally:
+        client.close()
+        os.close(host_end)
