@@ -115,10 +115,22 @@ def _what_was_simulated(r):
 
 
 def write(out_dir, r, opts, command=None):
+    """DIR/report.md from the run's results `r`: one section each, in the paper's order."""
     out_dir = Path(out_dir)
     command = command or "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host experiment paper"
-    L = []
-    add = L.append
+    lines = []
+    add = lines.append
+    _head_section(add, r, opts, command)
+    for section in (_summary_section, _calibration_section, _fig3a_section, _fig5_section, _fig7_section,
+                    _fig8_section, _dead_zone_section, _table1_section, _held_out_section):
+        section(add, r)
+    path = out_dir / "report.md"
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+def _head_section(add, r, opts, command):
+    """Title, when and how it was made, what was simulated, what was shortened, the method."""
     sim = r["simulated"]
     where = ("the simulated actuator (virtual board)" if not r.get("chip") else
              "the simulated actuator on an emulated %s (board %s)" % ({"rp2040": "Raspberry Pi Pico"}.get(r["chip"], r["chip"]), r["board"]))
@@ -148,12 +160,14 @@ def write(out_dir, r, opts, command=None):
             ", ".join("%s %.0f s" % kv for kv in r["timings"].items())))
     add("")
 
-    # summary table
+
+
+def _summary_section(add, r):
+    """Every figure beside the paper's and its target, judged."""
     h = headline(r)
     before, after, fig5, t1 = h["before"], h["after"], r["fig5"], r["table1"]
     worst_ss, worst_est, paper_rows = h["worst_steady_pct"], h["worst_estimation_pct"], h["paper_rows"]
     without, with_df, no_block = h["without_df"], h["with_df"], h["no_blocking"]
-    blocking = r["fig8"]
     rows3 = r["fig3a"]
     bcm3 = model_compare.norm_at(rows3, "bcm", 3)
     match = model_compare.pcm_order_matching(rows3, bcm3)
@@ -205,6 +219,9 @@ def write(out_dir, r, opts, command=None):
                 _f(off.get("force2_rms_n")), _f(r["force_fit"].get("rms_n"))))
         add("")
 
+
+
+def _calibration_section(add, r):
     add("## Calibration (host calibrate, logged in this run)")
     add("")
     for step, lines in r["calibration"].items():
@@ -230,6 +247,11 @@ def write(out_dir, r, opts, command=None):
             model, _f(ff.get("friction_n")), _f(ff["hysteresis_n"])))
     add("")
 
+
+
+def _fig3a_section(add, r):
+    rows3 = r["fig3a"]
+    bcm3 = model_compare.norm_at(rows3, "bcm", 3)
     add("## Fig. 3a: objective vs order (pot 2 sweep of this run)")
     add("")
     add("Paper: a 3rd-order BCM matches about a 10th-order PCM. Here: BCM-3 objective %s, PCM orders: %s." % (
@@ -238,6 +260,10 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("![Fig. 3a](fig3a.png)")
     add("")
+
+
+def _fig5_section(add, r):
+    fig5 = r["fig5"]
     add("## Fig. 5: assembly error Df before and after")
     add("")
     add("%s; peak |Df| %s mm before; after, peak residual %s mm of the means over 1 mm of D1 (the "
@@ -247,6 +273,11 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("![Fig. 5](calibration-df.png)")
     add("")
+
+
+def _fig7_section(add, r):
+    h = headline(r)
+    before, after = h["before"], h["after"]
     add("## Fig. 7: displacement control, error measured by the reference sensor on pot 2")
     add("")
     add("| target mm | before: reference mm | before: error mm | after: reference mm | after: error mm | after: settle time s |")
@@ -268,6 +299,11 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("![Fig. 7](fig7.png)")
     add("")
+
+
+def _fig8_section(add, r):
+    lo, hi = r.get("stroke_nominal_mm") or (0.0, 60.0)
+    blocking = r["fig8"]
     add("## Fig. 8: force control at no load from D2 = %g mm" % ((lo + hi) / 2))
     add("")
     add("| run | target N | D2 at the end mm |")
@@ -283,6 +319,9 @@ def write(out_dir, r, opts, command=None):
     add("")
     add("![Fig. 8](fig8.png)")
     add("")
+
+
+def _dead_zone_section(add, r):
     add("## Force dead zone")
     add("")
     add("Gauge hooked with the fibre just slack; force targets 0 to -5 N in 0.2 N steps, each held 0.5 s. Dead zone = the "
@@ -293,6 +332,11 @@ def write(out_dir, r, opts, command=None):
     for x in r["dead_zone"]["rows"]:
         add("| %+.1f | %s | %s |" % (x["target"], _f(x["measured"], 2), _f(x["estimate"], 2)))
     add("")
+
+
+def _table1_section(add, r):
+    t1 = r["table1"]
+    m = r.get("method", {})
     add("## Table 1: force steps against the gauge")
     add("")
     add("| gauge side | phase | target N | gauge N | steady-state error % | estimate N | estimation error % | paper: measured / estimated N |")
@@ -330,10 +374,6 @@ def write(out_dir, r, opts, command=None):
             "(firmware/measurement.py, firmware/controller.py)." % _f(r["force_fit"].get("friction_n"))
             if m.get("friction") else "This run did not model it (--no-friction), so it shows in both errors."))
     add("")
-    _held_out_section(add, r)
-    path = out_dir / "report.md"
-    path.write_text("\n".join(L) + "\n")
-    return path
 
 
 def _held_out_section(add, r):
