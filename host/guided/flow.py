@@ -98,11 +98,10 @@ def run_bringup(session, rig, prompter, opts, alone, log=None):
     """The bringup step: show, record, and decide whether the calibration may go on."""
     from host.guided.bringup import calibrate_bringup
 
-    if log:
-        log.start(BRINGUP)
+    log = log or _NoLog()
+    log.start(BRINGUP)
     outcome = calibrate_bringup(session, rig, prompter, opts)
-    if log:
-        log.done(outcome, accepted=outcome.ok)
+    log.done(outcome, accepted=outcome.ok)
     prompter.say("[bringup] results:")
     for line in outcome.lines:
         prompter.say("  " + line)
@@ -177,13 +176,66 @@ def _trim_friction(session, rig, prompter, opts, outcome, cal, board_name):
         prompter.say("  " + line)
 
 
-def run_steps(session, rig, prompter, steps, opts, log=None):
-    """Run `steps`; returns {step: StepOutcome} of the accepted ones. `log` (host.guided.run_log.
-    RunLog) records each step as it finishes."""
+@dataclass(frozen=True)
+class Step:
+    """A calibration step: `measure(session, rig, prompter, opts, path)` -> StepOutcome (nothing
+    written), and `after(session, rig, prompter, opts, outcome, cal, board_name)`, what follows once
+    its sections are written and flashed (the force step's friction trim)."""
+
+    name: str
+    measure: object
+    after: object = None
+
+
+def step_registry():
+    """{name: Step} of the calibration steps, in STEPS' order (their modules imported now)."""
     from host.guided.assembly_calibration import calibrate_assembly
     from host.guided.force_calibration import calibrate_force
     from host.guided.pot_calibration import calibrate_pots
 
+    return {"pots": Step("pots", lambda session, rig, prompter, opts, path: calibrate_pots(session, rig, prompter, opts)),
+            "assembly": Step("assembly", calibrate_assembly),
+            "force": Step("force", calibrate_force, after=_trim_friction)}
+
+
+class _NoLog:
+    """The run log's face when there is none (RunLog: start, done)."""
+
+    def start(self, step):
+        pass
+
+    def done(self, outcome, accepted):
+        pass
+
+
+def _accepted(prompter, step, outcome, log):
+    """Show the step's results and ask: True to write it, False when the person declines;
+    StepRefused when there is nothing to write or its checks failed under --yes."""
+    prompter.say("[%s] results:" % step)
+    for line in outcome.lines:
+        prompter.say("  " + line)
+    for png in outcome.plots:
+        prompter.say("  plot: %s" % png)
+    if not outcome.sections:
+        log.done(outcome, accepted=False)
+        raise StepRefused("%s step produced no calibration: fix what the checks say and run it again" % step)
+    question = "Accept the %s calibration?" % step
+    if not outcome.ok:
+        question = "Some checks FAILED (see above). Accept the %s calibration anyway?" % step
+        if prompter.yes:
+            log.done(outcome, accepted=False)
+            raise StepRefused("%s step failed its checks (see above); not accepted under --yes" % step)
+    if not prompter.accept(question):
+        prompter.say("  %s not accepted: the calibration file keeps its previous %s sections" % (step, step))
+        log.done(outcome, accepted=False)
+        return False
+    return True
+
+
+def run_steps(session, rig, prompter, steps, opts, log=None):
+    """Run `steps`; returns {step: StepOutcome} of the accepted ones. `log` (host.guided.run_log.
+    RunLog) records each step as it finishes."""
+    log = log or _NoLog()
     path = Path(opts.out)
     cal = CalibrationFile(path)
     follow_the_actuator(opts, session)
@@ -213,35 +265,12 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
             if not full:  # a step updates the file's other sections: refuse before measuring
                 raise
             keep_previous()  # a full run replaces it all; the unreadable file is kept aside
-    for step in steps:
-        if log:
-            log.start(step)
-        if step == "pots":
-            outcome = calibrate_pots(session, rig, prompter, opts)
-        elif step == "assembly":
-            outcome = calibrate_assembly(session, rig, prompter, opts, path)
-        else:
-            outcome = calibrate_force(session, rig, prompter, opts, path)
-        prompter.say("[%s] results:" % step)
-        for line in outcome.lines:
-            prompter.say("  " + line)
-        for png in outcome.plots:
-            prompter.say("  plot: %s" % png)
-        if not outcome.sections:
-            if log:
-                log.done(outcome, accepted=False)
-            raise StepRefused("%s step produced no calibration: fix what the checks say and run it again" % step)
-        question = "Accept the %s calibration?" % step
-        if not outcome.ok:
-            question = "Some checks FAILED (see above). Accept the %s calibration anyway?" % step
-            if prompter.yes:
-                if log:
-                    log.done(outcome, accepted=False)
-                raise StepRefused("%s step failed its checks (see above); not accepted under --yes" % step)
-        if not prompter.accept(question):
-            prompter.say("  %s not accepted: the calibration file keeps its previous %s sections" % (step, step))
-            if log:
-                log.done(outcome, accepted=False)
+    registry = step_registry()
+    for name in steps:
+        step = registry[name]
+        log.start(name)
+        outcome = step.measure(session, rig, prompter, opts, path)
+        if not _accepted(prompter, name, outcome, log):
             continue
         keep_previous()
         cal.set_sections(outcome.sections, board=board_name, new_pots=full)
@@ -254,9 +283,8 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         prompter.say("  wrote %s to %s" % (", ".join(outcome.sections), path))
         if opts.flash:
             session.flash(path)
-        if step == "force":
-            _trim_friction(session, rig, prompter, opts, outcome, cal, board_name)
-        accepted[step] = outcome
-        if log:
-            log.done(outcome, accepted=True)
+        if step.after is not None:
+            step.after(session, rig, prompter, opts, outcome, cal, board_name)
+        accepted[name] = outcome
+        log.done(outcome, accepted=True)
     return accepted
