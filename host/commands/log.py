@@ -18,7 +18,7 @@ def add_parser(subparsers):
                               "a display, a PNG of the run at the end.")
     add_port_arguments(p)
     p.add_argument("--out", required=True, help="CSV file to write (columns: firmware.telemetry.FIELDS)")
-    p.add_argument("--seconds", type=ranged(float, 0.001, 86400), default=None, help="stop after this long (default: until Ctrl-C)")
+    p.add_argument("--seconds", type=ranged(float, 0.001, 86400), default=None, help="stop after this many seconds of the board's time (its records' clock, as every wait counts; default: until Ctrl-C)")
     p.add_argument("--rate", type=ranged(int, 1, 1000), default=1000, metavar="HZ", help="telemetry rate, Hz (default 1000, at most the board's loop rate)")
     live_arguments(p, with_log=False)
     p.set_defaults(func=run)

@@ -171,3 +171,18 @@ def test_a_link_that_vanishes_is_a_link_error_in_one_line():
     finally:
         client.close()
         os.close(host_end)
+
+
+def test_a_log_whose_board_stops_streaming_ends_with_a_link_error(monkeypatch):
+    """`host log --seconds` counts the board's time; a board that sends nothing more would never
+    reach it, so after NO_DATA_S of wall time without a record the recording ends with LinkError."""
+    from types import SimpleNamespace
+
+    import host.link.telemetry_log as telemetry_log
+    from host.errors import LinkError
+
+    monkeypatch.setattr(telemetry_log, "NO_DATA_S", 0.3)
+    silent = SimpleNamespace(port="/dev/ttyACM9", heartbeat_if_due=lambda: None, frames=lambda timeout: [])
+    recording = telemetry_log.Recording(silent, "unused.csv")
+    with pytest.raises(LinkError, match="no telemetry from /dev/ttyACM9"):
+        recording.pump(seconds=5.0)

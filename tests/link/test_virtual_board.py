@@ -134,10 +134,10 @@ def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
     data = load(out)
     t = data["t_us"]
     assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
-    # Ten seconds of the host's clock; how many steps the virtual board ran in them depends on
-    # the machine's load (it drops ticks it cannot catch up), so only "many" is asserted ...
-    assert len(t) == summary.samples >= 1000
-    assert set(np.diff(t)) == {1000}  # ... and that every record of every step arrived, in order
+    # Ten seconds of the board's own time (its records' clock), whatever the machine's load
+    # (a loaded virtual board drops ticks it cannot catch up and takes longer in wall time) ...
+    assert len(t) == summary.samples and 10.0 <= (t[-1] - t[0]) / 1e6 < 10.5
+    assert set(np.diff(t)) == {1000}  # ... and every record of every step arrived, in order
 
 
 def test_cli_log_and_plot(vboard, tmp_path, capsys):
