@@ -92,10 +92,11 @@ class Recording:
     """Telemetry streamed at `rate` Hz into CSV `path` while other code drives the board through
     this object: one connection serves a motion and its log.
 
-    It stands in for the BoardClient (what it does not define goes to the client). Code that
-    streams for its own purposes (settle() during a move or a force hold) calls start_stream,
-    frames and stop_stream as usual, but the stream stays on at the recording's rate, and every
-    frame handed out by frames() is first written to the CSV and given to `on_rows(records)`.
+    It stands in for the BoardClient where a motion streams (host.guided.acquire.settle,
+    api.Board.stream_arrays): call, request, heartbeat_if_due, start_stream, frames and
+    stop_stream, nothing else. The stream stays on at the recording's rate whatever a caller's
+    start_stream asks, and every frame handed out by frames() is first written to the CSV and
+    given to `on_rows(records)`.
     `stop` (a threading.Event) set from another thread makes the next frames() raise
     KeyboardInterrupt, so whatever drives the board ends through its usual clean-up (motor off).
     Rows are written as they arrive, so a Ctrl-C or a lost port still leaves a complete file."""
@@ -110,8 +111,18 @@ class Recording:
         self.clock = BoardTime()  # the board's time the records written so far span
         self._file = self._writer = None
 
-    def __getattr__(self, name):
-        return getattr(self.client, name)
+    @property
+    def port(self):
+        return self.client.port
+
+    def call(self, name, *args, **kw):
+        return self.client.call(name, *args, **kw)
+
+    def request(self, name, *args, **kw):
+        return self.client.request(name, *args, **kw)
+
+    def heartbeat_if_due(self):
+        return self.client.heartbeat_if_due()
 
     def __enter__(self):
         meta = metadata(self.client.call("status"), self.rate)
@@ -213,14 +224,6 @@ def _naming(exc, path):
     """`exc` (an OSError of a write to the log) with the log's path as its filename, so the error
     line names the file, not only "No space left on device"."""
     return exc if exc.filename is not None else OSError(exc.errno, exc.strerror or str(exc), str(path))
-
-
-def record(board, path, seconds=None, rate=1000, progress=None, progress_every=1.0):
-    """Stream telemetry at `rate` Hz into CSV `path` for `seconds` (None: until Ctrl-C); the
-    metadata go to RUN.meta.json first. Returns the LogSummary."""
-    with Recording(board, path, rate) as recording:
-        recording.pump(seconds, progress, progress_every)
-    return recording.summary
 
 
 MAX_LOG_BYTES = 2 << 30  # hours at 1 kHz; a larger file would not fit the plot's arrays anyway

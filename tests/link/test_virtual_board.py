@@ -17,7 +17,7 @@ from host.link.board_client import BoardClient
 from host.link.board_time import BoardTime
 from host.errors import UserError
 from host.link.frames import FrameDecoder
-from host.link.telemetry_log import load, record
+from host.link.telemetry_log import Recording, load
 from host.link.virtual_board import VirtualBoard
 
 from testkit import processes as host_processes
@@ -130,7 +130,8 @@ def test_the_watchdog_stops_the_motor_after_a_second_of_board_time_without_the_h
 def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
     out = tmp_path / "run.csv"
     with BoardClient(vboard.path) as board:
-        summary = record(board, out, seconds=10, rate=1000)
+        with Recording(board, out, 1000) as recording:
+            summary = recording.pump(10)
     data = load(out)
     t = data["t_us"]
     assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
