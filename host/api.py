@@ -16,7 +16,6 @@ the same one-line messages the commands print.
 """
 
 import contextlib
-import time
 from collections import namedtuple
 from dataclasses import dataclass, field
 
@@ -25,7 +24,8 @@ import numpy as np
 from firmware import protocol as P
 from host.guided.acquire import settle
 from host.link.board_client import BoardError
-from host.link.board_time import NO_DATA_S, BoardTime
+from host.link import stream
+from host.link.board_time import BoardTime
 from host.link.connect import Connection
 from host.link.board_params import read_table, set_values
 from host.errors import UserError
@@ -232,28 +232,9 @@ class Board:
 
     def stream_arrays(self, seconds=None, rate=1000):
         """As stream(), a numpy int32 array (records x P.FIELDS) per frame as it arrives."""
-        link = self._link
-        link.start_stream(rate)
-        clock = BoardTime()
-        last_data = time.monotonic()
-        try:
-            while seconds is None or clock.seconds < seconds:
-                link.heartbeat_if_due()
-                frames = link.frames(timeout=0.05)
-                if frames:
-                    last_data = time.monotonic()
-                elif time.monotonic() - last_data >= NO_DATA_S:
-                    raise UserError("no telemetry from %s for %g s" % (self.port, NO_DATA_S))
-                for frame in frames:
-                    rows = frame.records()
-                    stamps = clock.stamps(rows)
-                    if seconds is not None:  # the last frame may reach past the end
-                        rows = rows[: max(1, np.searchsorted(stamps, seconds, side="right"))]
-                    yield rows
-                    if seconds is not None and clock.seconds >= seconds:
-                        return
-        finally:
-            link.stop_stream()
+        with stream.closing(stream.records(self._link, seconds, rate)) as arrays:
+            for rows, _board_s in arrays:
+                yield rows
 
     def record(self, seconds, rate=1000):
         """`seconds` of the board's time at `rate` Hz as {field: numpy int64 array} (the shape

@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from firmware import protocol as P
+from host.link import stream
 from host.link.board_time import NO_DATA_S, BoardTime
 
 COL = {name: i for i, name in enumerate(P.FIELDS)}
@@ -34,25 +35,12 @@ def collect(client, seconds, until=None, hz=STREAM_HZ):
     """Telemetry records (int array, columns P.FIELDS) for `seconds` of the board's own time
     (BoardTime) or until `until(records, seconds so far)`; what came if the board sends nothing
     for max(NO_DATA_S, seconds) of wall-clock time."""
-    client.start_stream(hz)
     chunks = []
-    clock = BoardTime()
-    last_data = time.monotonic()
-    try:
-        while clock.seconds < seconds:
-            client.heartbeat_if_due()
-            got = [f.records().copy() for f in client.frames(timeout=0.05)]
-            if got:
-                last_data = time.monotonic()
-                for rows in got:
-                    clock.add(rows)
-                chunks.extend(got)
-                if until is not None and until(np.concatenate(chunks), clock.seconds):
-                    break
-            elif time.monotonic() - last_data >= max(NO_DATA_S, seconds):
+    with stream.closing(stream.records(client, seconds, hz, patience=max(NO_DATA_S, seconds), silence_ends=True)) as rows:
+        for got, board_s in rows:
+            chunks.append(got.copy())
+            if until is not None and until(np.concatenate(chunks), board_s):
                 break
-    finally:
-        client.stop_stream()
     return np.concatenate(chunks) if chunks else np.zeros((0, P.RECORD_WORDS), dtype=np.int32)
 
 

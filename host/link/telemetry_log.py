@@ -19,8 +19,8 @@ from pathlib import Path
 
 from firmware.protocol import FIELDS, MODES
 from firmware.safety import FAULT_NAMES
-from host.errors import LinkError
-from host.link.board_time import NO_DATA_S, BoardTime
+from host.link import stream
+from host.link.board_time import NO_DATA_S
 
 # Each column's unit (a new telemetry field must say its unit here: tests check)
 UNITS = {
@@ -108,7 +108,6 @@ class Recording:
         self.on_rows = on_rows
         self.stop = stop
         self.summary = LogSummary()
-        self.clock = BoardTime()  # the board's time the records written so far span
         self._file = self._writer = None
 
     @property
@@ -160,7 +159,6 @@ class Recording:
         except OSError as exc:  # a full disk shows here, at a buffer's flush: say which file
             raise _naming(exc, self.path) from None
         self.summary.samples += len(rows)
-        self.clock.add(rows)
         self.summary.board_dropped = frame.dropped()
         if self.on_rows is not None:
             self.on_rows(rows)
@@ -178,17 +176,9 @@ class Recording:
         heartbeats keep the firmware's host timeout away. LinkError when no record comes for
         NO_DATA_S of wall time."""
         next_report = time.monotonic() + progress_every
-        heard, samples = time.monotonic(), self.summary.samples
         try:
-            while seconds is None or self.clock.seconds < seconds:
-                self.client.heartbeat_if_due()
-                self.frames(timeout=0.05)
+            for _rows, _board_s in stream.records(self, seconds, self.rate, patience=NO_DATA_S):
                 now = time.monotonic()
-                if self.summary.samples != samples:
-                    heard, samples = now, self.summary.samples
-                elif now - heard > NO_DATA_S:
-                    raise LinkError("no telemetry from %s for %.0f s: the board stopped streaming"
-                                    % (self.client.port, NO_DATA_S))
                 if progress and now >= next_report:
                     next_report += progress_every
                     self._update()
