@@ -17,19 +17,13 @@ microcontroller.nvm instead, named nvm:last_exit.txt and nvm:params.txt (hal.rec
 import os
 
 
-def _exists(path):
-    try:
-        os.stat(path)
-        return True
-    except OSError:
-        return False
-
-
 def recover_calibration(path):
     """Finish an install that stopped between moving the old calibration aside and moving the
     new one in (only possible on FAT, see host/link/flashing.py): put the old one back."""
+    from firmware.records import exists
+
     old = path + ".old"
-    if not _exists(path) and _exists(old):
+    if not exists(path) and exists(old):
         os.rename(old, path)
 
 

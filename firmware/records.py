@@ -20,7 +20,8 @@ import os
 import binascii
 
 
-def _exists(path):
+def exists(path):
+    """Whether a file is at `path` (MicroPython's os has no os.path)."""
     try:
         os.stat(path)
         return True
@@ -38,9 +39,9 @@ class FileRecord:
         """Up to `limit` characters of the text, or None when there is no record. Raises OSError
         or ValueError (UnicodeError) when there is one that cannot be read."""
         use = self.name
-        if not _exists(use):
+        if not exists(use):
             use += ".new"  # a write that stopped after removing the old file (FAT)
-            if not _exists(use):
+            if not exists(use):
                 return None
         with open(use) as f:
             return f.read(limit)
