@@ -18,10 +18,11 @@ def add_parser(subparsers):
 def probe(device):
     """'lsea-kit VERSION on BOARD' or why not."""
     from host.errors import UserError
-    from host.link.connect import ask_firmware
+    from host.link.connect import Connection
 
     try:
-        st = ask_firmware(device)
+        with Connection(device, check=False) as connection:
+            st = connection.client.handshake()
         return "lsea-kit %s on %s" % (st.get("version"), st.get("board"))
     except (UserError, OSError) as exc:
         return "no lsea-kit firmware (%s)" % (str(exc).split(":")[0],)

@@ -9,8 +9,8 @@ real Pico, by `host flash` over its USB serial. Either one's serial path, rig an
 valid while clients come and go, so a guided calibration can close its client, flash the board
 and open a new one.
 `Connection(port, ...)` is open_port with a BoardClient on it (the handshake done), and the one
-way a command or the guided calibration talks to a board, re-flashes it and reconnects;
-`ask_firmware(port)` is the handshake alone (host ports --probe, host flash's question).
+way a command or the guided calibration talks to a board, re-flashes it and reconnects (with
+check=False, the client's own handshake() asks what runs there: host ports --probe, host flash).
 """
 
 from pathlib import Path
@@ -236,10 +236,3 @@ class Connection:
 
     def __exit__(self, *exc):
         self.close()
-
-
-def ask_firmware(port):
-    """The status our firmware on serial port `port` answers with (UserError or OSError when
-    nothing of ours answers there)."""
-    with BoardClient(port, check=False) as client:
-        return client.handshake()

@@ -329,11 +329,11 @@ def check_files(board_path, calibration=None, force=False):
 
 def identify(port):
     """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
-    from host.link.board_client import BoardClient
+    from host.link.connect import Connection
 
-    with BoardClient(port, check=False) as client:  # a missing or busy port is for the user to fix
+    with Connection(port, check=False) as connection:  # a missing or busy port is for the user to fix
         try:
-            return client.handshake().get("board")
+            return connection.client.handshake().get("board")
         except (UserError, OSError):
             return None
 
