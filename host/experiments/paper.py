@@ -12,7 +12,7 @@ import time
 from pathlib import Path
 
 
-from host.experiments import displacement, force_runs, held_out, model_compare, report, variants
+from host.experiments import displacement, figures, force_runs, held_out, model_compare, report, variants
 from host.guided import stroke
 from host.guided.flow import BRINGUP, STEPS, run_steps
 from host.guided.force_calibration import gauge_sides
@@ -119,160 +119,194 @@ def json_text(v):
     return json.dumps(v, indent=1, default=lambda x: x.tolist() if hasattr(x, "tolist") else str(x))[:4000]
 
 
+class PaperRun:
+    """One run of the paper's experiments: the board, the rig and the options every phase reads, and
+    what earlier phases found that later ones need (the accepted calibration, the reference zero,
+    the targets, the held-out draws)."""
+
+    def __init__(self, session, rig, prompter, opts, out_dir, say, held_out_seed):
+        import numpy as np
+
+        self.session, self.rig, self.prompter, self.opts, self.say = session, rig, prompter, opts, say
+        self.out_dir = Path(out_dir)
+        self.calibrated = Path(opts.out)
+        self.seed = held_out.draw_seed() if held_out_seed is None else int(held_out_seed)
+        self.rng = np.random.default_rng(self.seed)
+        self.held_out = figures.HeldOut(seed=self.seed)
+        self.accepted = None  # step name -> the guided step's result, after the calibration phase
+
+    def describe(self, results):
+        """What the report says about the board, the model asked for and the stroke, before any phase."""
+        session, opts = self.session, self.opts
+        results.update({"board": session.board["name"], "simulated": session.simulated,
+                        "chip": getattr(session.virtual, "chip", None), "port": session.port,
+                        "interpreter": (session.client.status_info or {}).get("interpreter")})
+        block = (session.actuator or {}).get("block") or {}
+        results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
+        results["preload_n"] = PRELOAD_N
+        results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]
+        from host.fitting.pot_fit import DEFAULT_ORDER
+
+        order = opts.order if opts.order is not None else DEFAULT_ORDER.get(opts.model)
+        results["model"] = "%s%s" % (opts.model, "" if order is None else " order %d" % order)
+        if opts.model == "auto":
+            results["model"] += " (budget %d numbers)" % opts.budget
+        results["stroke_nominal_mm"] = list(opts.stroke)
+
+    def calibration(self, results):
+        """All of the guided calibration (bringup first, as a full `host calibrate` does: wiring
+        checks and, with --fix, the board-file settings it recommends), logged; its data saved as
+        CSV for a later refit; Fig. 5 is the assembly step's own sweep."""
+        from host.guided.run_log import RunLog
+
+        session, opts = self.session, self.opts
+        self.say("== calibration (all steps) ==")
+        log = RunLog(opts.out, "host experiment paper", board=session.board["name"])
+        results["calibration_steps"] = log.results["steps"]  # each step's lines as it finishes, for a stopped run
+        accepted = run_steps(session, self.rig, self.prompter, (BRINGUP,) + STEPS, opts, log=log)
+        log.finish()
+        missing = [s for s in STEPS if s not in accepted]
+        if missing:
+            from host.errors import UserError
+
+            raise UserError("the experiments need every calibration step; not accepted: %s" % ", ".join(missing))
+        self.accepted = accepted
+        pots, asm, frc = accepted["pots"].data, accepted["assembly"].data, accepted["force"].data
+        for pot in ("pot1", "pot2"):
+            _save_sweep(self.out_dir / ("sweep-%s.csv" % pot), pots[pot])
+        _save_columns(self.out_dir / "df-samples.csv", {"d1_mm": asm["d1_mm"], "df_mm": asm["df_mm"], "direction": asm["direction"]})
+        _save_columns(self.out_dir / "force-points.csv", {"d_mm": frc["d_mm"], "force_n": frc["force_n"], "s": frc["s"],
+                                                          "loading": frc["loading"], "duty": frc["duty"]})
+        status = session.client.call("status")
+        results["stroke_in_force_mm"] = [v / 1000.0 for v in status["stroke_um"]]
+        # the end stops the pots step measured, in D2's frame: pot 2's mounting error can stretch or
+        # shrink the stroke it sees (56.9 mm of a 60 mm one on a fresh actuator), and a target 1 mm
+        # inside the nominal ends could then lie past the soft limit (the run never settled there)
+        results["stroke_measured_mm"] = ([v / 1000.0 for v in status["end_stops_um"]] if status.get("end_stops_um")
+                                         else list(opts.stroke))
+        optional = lambda v: None if v is None else list(v)  # noqa: E731
+        force_fit = {"coeffs_f": list(frc["coeffs_f"]), "coeffs_d": list(frc["coeffs_d"]),
+                     "hysteresis_n": frc["hysteresis_n"], "friction_n": frc["friction_n"],
+                     "rms_n": frc["rms_n"], "rms_plain_n": frc["rms_plain_n"], "sides": list(frc["sides"]),
+                     "kind": frc.get("kind", "poly"), "knots_d": optional(frc.get("knots_d")),
+                     "knots_f": optional(frc.get("knots_f"))}
+        method = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
+                  "friction": opts.friction, "budget": opts.budget, "rounds": opts.rounds,
+                  "force_order_chosen": int(frc["order"])}
+        return [figures.Calibration(
+                    lines={s: accepted[s].lines for s in (BRINGUP,) + STEPS},
+                    plots=[p.name for s in STEPS for p in accepted[s].plots],
+                    pot_models={pot: "%s order %d" % (pots[pot]["fit"].model, pots[pot]["fit"].order) for pot in ("pot1", "pot2")},
+                    paper_method_offline=paper_method_offline(pots, asm, frc), force_fit=force_fit, method=method),
+                figures.Fig5(asm["stats"])]
+
+    def held_out_df(self, results):
+        """Df on a validation sweep the fit never saw, with the calibration on the board."""
+        self.say("== held out: what the calibration never saw (targets drawn with seed %d) ==" % self.seed)
+        duty = max(100, int(self.opts.duty * held_out.SWEEP_DUTY_FACTOR))
+        df = self.held_out.df = held_out.df_validation(self.session, self.rig, duty, self.say)
+        self.say("  Df held out: %.3f mm peak of 1 mm bin means, the two directions averaged (%.3f mm pooled; the "
+                 "friction's deflection %+.3f mm)" % (df["peak_binned_mm"], df.get("peak_pooled_mm", float("nan")),
+                                                     df.get("friction_deflection_mm", float("nan"))))
+        return [self.held_out]
+
+    def fig3a(self, results):
+        """The objective against the order, on this run's pot 2 sweep."""
+        self.say("== Fig. 3a: objective vs order (pot 2 sweep of this run) ==")
+        p2 = self.accepted["pots"].data["pot2"]
+        rows, _ = model_compare.run(p2["raw"], p2["ref"], p2["noise"], self.out_dir, "pot 2", self.say)
+        return [figures.Fig3a(rows)]
+
+    def fig7_fig8(self, results):
+        """Positions before (nominal 2-point pots) and after; no-load force runs without the Df
+        correction and with it; the held-out positions with the accepted calibration."""
+        session, rig, opts, say, out_dir = self.session, self.rig, self.opts, self.say, self.out_dir
+        say("== Fig. 7 before: nominal 2-point pot calibration ==")
+        pots = self.accepted["pots"].data
+        session.flash(variants.write_nominal(out_dir / "calibration-nominal.json", self.calibrated, pots, session.board["adc_bits"]))
+        middle = stroke.middle(opts.stroke)
+        zero = displacement.zero_at_stops(session, rig, opts.ref_scale, middle_mm=middle)
+        targets = stroke.position_targets(results["stroke_measured_mm"], results["stroke_in_force_mm"])
+        say("  reference zeroed at the block's end stops: %.3f and %.3f mm, shift %+.3f mm" % (zero["low"], zero["high"], zero["shift"]))
+        before = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="before")
+
+        say("== Fig. 8 without the Df correction ==")
+        session.flash(variants.write_without_df(out_dir / "calibration-without-df.json", self.calibrated))
+        blocking = [("without Df", force_runs.blocking_run(session, rig, 5.0, middle))]
+
+        say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
+        session.flash(self.calibrated)
+        after = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="after")
+        drawn = held_out.draw_positions(self.rng, results["stroke_in_force_mm"], paper_targets=targets)
+        say("  held-out positions (drawn): %s mm" % ", ".join("%g" % t for t in drawn))
+        self.held_out.positions = held_out.positions(session, rig, opts.ref_scale, zero, drawn)
+        for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
+            blocking.append(("with Df", force_runs.blocking_run(session, rig, target, middle)))
+        displacement.plot(out_dir / "fig7.png", before, after)
+        force_runs.plot_blocking(out_dir / "fig8.png", blocking[:2])
+        runs = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]
+        return [figures.Fig7(before=before, after=after, reference_zero=zero), figures.Fig8(runs), self.held_out]
+
+    def dead_zone(self, results):
+        self.say("== force dead zone ==")
+        rows, dead_zone_n = force_runs.dead_zone(self.session, self.rig, self.prompter, self.opts.anchor_mm)
+        return [figures.DeadZone(rows=rows, dead_zone_n=dead_zone_n)]
+
+    def _reached(self):
+        """The force each gauge side's force step reached: the steps and draws stay inside it."""
+        return held_out.side_ranges(self.accepted["force"].data, gauge_sides(self.opts.gauge_sides))
+
+    def table1(self, results):
+        self.say("== Table 1: force steps ==")
+        reached = self._reached()
+        return [figures.Table1([row for side in gauge_sides(self.opts.gauge_sides)
+                                for row in force_runs.force_steps(self.session, self.rig, self.prompter, self.opts.anchor_mm,
+                                                                  side, reached_n=reached[side])])]
+
+    def held_out_forces(self, results):
+        """Force steps at forces drawn fresh, away from those the trim and its F0 check held."""
+        opts, force = self.opts, self.accepted["force"].data
+        self.say("== held-out force steps (drawn) ==")
+        reached = self._reached()
+        rows, draws = [], {}
+        for side in gauge_sides(opts.gauge_sides):
+            held = held_out.held_by_calibration(reached[side]) if opts.trim and opts.friction else []
+            magnitudes = held_out.draw_forces(self.rng, reached[side], held, held_out.side_levels(force, side))
+            draws[side] = {"reached_n": reached[side], "held_by_calibration_n": held, "drawn_n": magnitudes}
+            self.say("  %s side (reached %.1f N; the calibration held %s N): %s N" % (
+                side, reached[side], ", ".join("%g" % h for h in held) or "-", ", ".join("%g" % m for m in magnitudes) or "none"))
+            if magnitudes:
+                rows += held_out.forces(self.session, self.rig, self.prompter, opts.anchor_mm, side, magnitudes)
+        self.held_out.force_draws, self.held_out.forces = draws, rows
+        return [self.held_out]
+
+
+# (progress name, phase) in the order they run: each phase returns the figures it measured
+PHASES = (("calibration", PaperRun.calibration), ("held-out Df", PaperRun.held_out_df), ("Fig. 3a", PaperRun.fig3a),
+          ("Fig. 7 and Fig. 8", PaperRun.fig7_fig8), ("force dead zone", PaperRun.dead_zone), ("Table 1", PaperRun.table1),
+          ("held-out force steps", PaperRun.held_out_forces))
+
+
 def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, held_out_seed=None):
-    out_dir = Path(out_dir)
+    """Every phase in order, each one's figures stored and results.json saved after it (a run that
+    stops keeps what it measured); then the report. Returns (report path, results)."""
     t0 = time.monotonic()
-    timings = {}
     results = {} if results is None else results
-    results.update({"board": session.board["name"], "simulated": session.simulated,
-                    "chip": getattr(session.virtual, "chip", None), "port": session.port,
-                    "interpreter": (session.client.status_info or {}).get("interpreter")})
+    run = PaperRun(session, rig, prompter, opts, out_dir, say, held_out_seed)
+    run.describe(results)
+    timings = {}
     progress = Progress(out_dir, results)
-    block = (session.actuator or {}).get("block") or {}
-    results["sim_block_friction_n"] = block.get("coulomb_n")  # the model's, for the report's explanation
-    results["preload_n"] = PRELOAD_N
-    results["stroke_mm"] = [session.client.call("get", name) / 1000.0 for name in ("stroke_min_um", "stroke_max_um")]
-    from host.fitting.pot_fit import DEFAULT_ORDER
-
-    order = opts.order if opts.order is not None else DEFAULT_ORDER.get(opts.model)
-    results["model"] = "%s%s" % (opts.model, "" if order is None else " order %d" % order)
-    if opts.model == "auto":
-        results["model"] += " (budget %d numbers)" % opts.budget
-
-    say("== calibration (all steps) ==")
-    progress.start("calibration")
-    from host.guided.run_log import RunLog
-
-    log = RunLog(opts.out, "host experiment paper", board=session.board["name"])
-    results["calibration_steps"] = log.results["steps"]  # each step's lines as it finishes, for a stopped run
-    # bringup first, as a full host calibrate does: wiring checks, and (with --fix) the board-file
-    # settings it recommends, such as more reads per step for noisy pots
-    accepted = run_steps(session, rig, prompter, (BRINGUP,) + STEPS, opts, log=log)
-    log.finish()
-    missing = [s for s in STEPS if s not in accepted]
-    if missing:
-        from host.errors import UserError
-
-        raise UserError("the experiments need every calibration step; not accepted: %s" % ", ".join(missing))
-    timings["calibration"] = time.monotonic() - t0
-    results["calibration"] = {s: accepted[s].lines for s in (BRINGUP,) + STEPS}
-    results["calibration_plots"] = [p.name for s in STEPS for p in accepted[s].plots]
-    pots = accepted["pots"].data
-    results["pot_models"] = {pot: "%s order %d" % (pots[pot]["fit"].model, pots[pot]["fit"].order) for pot in ("pot1", "pot2")}
-    results["paper_method_offline"] = paper_method_offline(pots, accepted["assembly"].data, accepted["force"].data)
-    for pot in ("pot1", "pot2"):
-        _save_sweep(out_dir / ("sweep-%s.csv" % pot), pots[pot])
-    asm, frc = accepted["assembly"].data, accepted["force"].data
-    _save_columns(out_dir / "df-samples.csv", {"d1_mm": asm["d1_mm"], "df_mm": asm["df_mm"], "direction": asm["direction"]})
-    _save_columns(out_dir / "force-points.csv", {"d_mm": frc["d_mm"], "force_n": frc["force_n"], "s": frc["s"],
-                                                 "loading": frc["loading"], "duty": frc["duty"]})
-    calibrated = Path(opts.out)
-    results["fig5"] = accepted["assembly"].data["stats"]
-    progress.done()
-
-    import numpy as np
-
-    results["stroke_nominal_mm"] = list(opts.stroke)
-    status = session.client.call("status")
-    results["stroke_in_force_mm"] = [v / 1000.0 for v in status["stroke_um"]]
-    # the end stops the pots step measured, in D2's frame: pot 2's mounting error can stretch or
-    # shrink the stroke it sees (56.9 mm of a 60 mm one on a fresh actuator), and a target 1 mm
-    # inside the nominal ends could then lie past the soft limit (the run never settled there)
-    results["stroke_measured_mm"] = ([v / 1000.0 for v in status["end_stops_um"]] if status.get("end_stops_um")
-                                     else list(opts.stroke))
-    seed = held_out.draw_seed() if held_out_seed is None else int(held_out_seed)
-    rng = np.random.default_rng(seed)
-    say("== held out: what the calibration never saw (targets drawn with seed %d) ==" % seed)
-    progress.start("held-out Df")
-    results["held_out"] = {"seed": seed}
-    results["held_out"]["df"] = held_out.df_validation(session, rig, max(100, int(opts.duty * held_out.SWEEP_DUTY_FACTOR)), say)
-    say("  Df held out: %.3f mm peak of 1 mm bin means, the two directions averaged (%.3f mm pooled; the "
-        "friction's deflection %+.3f mm)" % (results["held_out"]["df"]["peak_binned_mm"],
-                                           results["held_out"]["df"].get("peak_pooled_mm", float("nan")),
-                                           results["held_out"]["df"].get("friction_deflection_mm", float("nan"))))
-    progress.done()
-
-    say("== Fig. 3a: objective vs order (pot 2 sweep of this run) ==")
-    progress.start("Fig. 3a")
-    t = time.monotonic()
-    p2 = pots["pot2"]
-    rows, _ = model_compare.run(p2["raw"], p2["ref"], p2["noise"], out_dir, "pot 2", say)
-    results["fig3a"] = rows
-    timings["fig3a"] = time.monotonic() - t
-    progress.done()
-
-    fd = accepted["force"].data
-    results["force_fit"] = {"coeffs_f": list(fd["coeffs_f"]), "coeffs_d": list(fd["coeffs_d"]),
-                            "hysteresis_n": fd["hysteresis_n"], "friction_n": fd["friction_n"],
-                            "rms_n": fd["rms_n"], "rms_plain_n": fd["rms_plain_n"], "sides": list(fd["sides"]),
-                            "kind": fd.get("kind", "poly"),
-                            "knots_d": None if fd.get("knots_d") is None else list(fd["knots_d"]),
-                            "knots_f": None if fd.get("knots_f") is None else list(fd["knots_f"])}
-    results["method"] = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
-                         "friction": opts.friction, "budget": opts.budget, "rounds": opts.rounds,
-                         "force_order_chosen": int(fd["order"])}
-
-    t = time.monotonic()
-    bits = session.board["adc_bits"]
-    say("== Fig. 7 before: nominal 2-point pot calibration ==")
-    progress.start("Fig. 7 and Fig. 8")
-    nominal = variants.write_nominal(out_dir / "calibration-nominal.json", calibrated, pots, bits)
-    session.flash(nominal)
-    zero = displacement.zero_at_stops(session, rig, opts.ref_scale, middle_mm=stroke.middle(opts.stroke))
-    targets = stroke.position_targets(results["stroke_measured_mm"], results["stroke_in_force_mm"])
-    say("  reference zeroed at the block's end stops: %.3f and %.3f mm, shift %+.3f mm" % (zero["low"], zero["high"], zero["shift"]))
-    before = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="before")
-
-    say("== Fig. 8 without the Df correction ==")
-    session.flash(variants.write_without_df(out_dir / "calibration-without-df.json", calibrated))
-    middle = stroke.middle(opts.stroke)
-    blocking = [("without Df", force_runs.blocking_run(session, rig, 5.0, middle))]
-
-    say("== with the accepted calibration: Fig. 7 after, Fig. 8, dead zone, Table 1 ==")
-    session.flash(calibrated)
-    after = displacement.run_targets(session, rig, opts.ref_scale, zero, targets=targets, label="after")
-    drawn = held_out.draw_positions(rng, results["stroke_in_force_mm"], paper_targets=targets)
-    say("  held-out positions (drawn): %s mm" % ", ".join("%g" % t for t in drawn))
-    results["held_out"]["positions"] = held_out.positions(session, rig, opts.ref_scale, zero, drawn)
-    for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
-        blocking.append(("with Df", force_runs.blocking_run(session, rig, target, middle)))
-    results["fig7"] = {"before": before, "after": after, "reference_zero": zero}
-    displacement.plot(out_dir / "fig7.png", before, after)
-    results["fig8"] = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]
-    force_runs.plot_blocking(out_dir / "fig8.png", blocking[:2])
-    timings["control"] = time.monotonic() - t
-    progress.done()
-
-    t = time.monotonic()
-    say("== force dead zone ==")
-    progress.start("force dead zone")
-    dz_rows, dz = force_runs.dead_zone(session, rig, prompter, opts.anchor_mm)
-    results["dead_zone"] = {"rows": dz_rows, "dead_zone_n": dz}
-    progress.done()
-    say("== Table 1: force steps ==")
-    progress.start("Table 1")
-    reached = held_out.side_ranges(accepted["force"].data, gauge_sides(opts.gauge_sides))
-    results["table1"] = [row for side in gauge_sides(opts.gauge_sides)
-                         for row in force_runs.force_steps(session, rig, prompter, opts.anchor_mm, side, reached_n=reached[side])]
-    progress.done()
-    say("== held-out force steps (drawn) ==")
-    progress.start("held-out force steps")
-    rows, drawn_forces = [], {}
-    for side in gauge_sides(opts.gauge_sides):
-        held = held_out.held_by_calibration(reached[side]) if opts.trim and opts.friction else []
-        magnitudes = held_out.draw_forces(rng, reached[side], held, held_out.side_levels(accepted["force"].data, side))
-        drawn_forces[side] = {"reached_n": reached[side], "held_by_calibration_n": held, "drawn_n": magnitudes}
-        say("  %s side (reached %.1f N; the calibration held %s N): %s N" % (
-            side, reached[side], ", ".join("%g" % h for h in held) or "-", ", ".join("%g" % m for m in magnitudes) or "none"))
-        if magnitudes:
-            rows += held_out.forces(session, rig, prompter, opts.anchor_mm, side, magnitudes)
-    results["held_out"]["force_draws"] = drawn_forces
-    results["held_out"]["forces"] = rows
-    timings["force"] = time.monotonic() - t
+    for name, phase in PHASES:
+        progress.start(name)
+        t = time.monotonic()
+        for figure in phase(run, results):
+            figure.store(results)
+        timings[name] = time.monotonic() - t
+        progress.done()
     timings["total"] = time.monotonic() - t0
-    results["timings"] = timings
+    results["timings"] = timings  # last: bench_robustness.py takes it as the sign that a run ended
     results.pop("phase", None)
-    progress.done()  # results.json first: a report bug must not lose the run
+    save_results(progress.path, results)  # results.json first: a report bug must not lose the run
     progress.start("the report")
     path = report.write(out_dir, results, opts)
     return path, results
