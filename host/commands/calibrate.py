@@ -4,9 +4,10 @@ from pathlib import Path
 
 from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.errors import UserError
-from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
+
+DEFAULT = Options()  # the defaults of the options below are Options' own: one place for each
 
 
 def add_parser(subparsers):
@@ -28,20 +29,20 @@ def add_parser(subparsers):
     p.add_argument("--yes", action="store_true", help="no questions: mount automatically (virtual rig), accept results that pass every check")
     p.add_argument("--out", default="calibration.json", metavar="FILE", help="calibration file to write (default calibration.json)")
     p.add_argument("--plots", default=None, metavar="DIR", help="where to write the PNG plots (default: beside --out)")
-    p.add_argument("--reference", choices=("adc", "manual"), default="adc",
+    p.add_argument("--reference", choices=("adc", "manual"), default=DEFAULT.reference,
                    help="pots: the reference sensor on the board's reference ADC input (adc), or dial-gauge readings typed in (manual)")
     p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over its full scale, mm (real boards)")
-    p.add_argument("--manual-points", type=ranged(int, 3, 200), default=12, help="--reference manual: stops per direction (default 12)")
+    p.add_argument("--manual-points", type=ranged(int, 3, 200), default=DEFAULT.manual_points, help="--reference manual: stops per direction (default %(default)s)")
     add_method_arguments(p)
     add_gauge_arguments(p)
-    p.add_argument("--duty", type=ranged(int, 100, 6000), default=1500, help="open-loop duty of the sweeps, of 10000 (default 1500: ~13 mm/s)")
-    p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force: loading/unloading rounds (paper: 5; default 2)")
-    p.add_argument("--levels", type=ranged(int, 3, 50), default=8, help="force: loading steps of 5000/N duty each (default 8: 625), "
+    p.add_argument("--duty", type=ranged(int, 100, 6000), default=DEFAULT.duty, help="open-loop duty of the sweeps, of 10000 (default %(default)s: ~13 mm/s)")
+    p.add_argument("--rounds", type=ranged(int, 1, 20), default=DEFAULT.rounds, help="force: loading/unloading rounds (paper: 5; default %(default)s)")
+    p.add_argument("--levels", type=ranged(int, 3, 50), default=DEFAULT.levels, help="force: loading steps of 5000/N duty each (default %(default)s), "
                    "taken until the gauge reads --force-range")
-    p.add_argument("--force-range", type=ranged(float, 1, 25), default=16.0, metavar="N",
-                   help="force: load until the gauge reads this many newtons (default 16: the paper's forces reach 15 N)")
-    p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=9000, help="force: largest open-loop duty (default 9000)")
+    p.add_argument("--force-range", type=ranged(float, 1, 25), default=DEFAULT.force_range, metavar="N",
+                   help="force: load until the gauge reads this many newtons (default %(default)s: the paper's forces reach 15 N)")
+    p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=DEFAULT.max_duty, help="force: largest open-loop duty (default %(default)s)")
     p.add_argument("--anchor-mm", type=ranged(float, -65.5, 65.5), default=None,
                    help="force: where the fibre goes taut, mm (default 75 %% along the stroke: 45 of 0-60 mm)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
@@ -58,17 +59,17 @@ def add_method_arguments(p):
                    help="the paper's method: BCM-3 pots, a quartic Df, quadratic force fits without friction, gauge "
                    "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
                    "--gauge-sides high --no-friction, and it overrides those options)")
-    p.add_argument("--model", default="auto", choices=list(MODELS) + ["auto"], metavar="MODEL", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
+    p.add_argument("--model", default=DEFAULT.model, choices=list(MODELS) + ["auto"], metavar="MODEL", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
                    "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
                    "(see host fit --help)")
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
-    p.add_argument("--budget", type=ranged(int, 4, 4096), default=DEFAULT_BUDGET, help="--model auto: most numbers a pot curve may store "
-                   "(default %d: a table of up to %d knots)" % (DEFAULT_BUDGET, DEFAULT_BUDGET // 2 + 1))
-    p.add_argument("--df-order", default="auto", help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
+    p.add_argument("--budget", type=ranged(int, 4, 4096), default=DEFAULT.budget, help="--model auto: most numbers a pot curve may store "
+                   "(default %d: a table of up to %d knots)" % (DEFAULT.budget, DEFAULT.budget // 2 + 1))
+    p.add_argument("--df-order", default=DEFAULT.df_order, help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
                    "cross-validation finds a higher order more than 5 %% better")
-    p.add_argument("--force-order", default="auto", help="F0(d) and d(F0) order 1-5, or auto (default, cross-validation); "
+    p.add_argument("--force-order", default=DEFAULT.force_order, help="F0(d) and d(F0) order 1-5, or auto (default, cross-validation); "
                    "the paper fits quadratics (2)")
-    p.add_argument("--gauge-sides", choices=("high", "low", "both"), default="both",
+    p.add_argument("--gauge-sides", choices=("high", "low", "both"), default=DEFAULT.gauge_sides,
                    help="force: gauge on the 60 mm side (high: the block pulls toward 0 mm, negative forces, the paper's "
                    "rig), the 0 mm side (low: positive forces), or one after the other (both, default)")
     p.add_argument("--no-friction", action="store_true", help="force: fit F0(d) without the output block's friction "

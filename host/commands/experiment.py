@@ -4,7 +4,7 @@ import sys
 from pathlib import Path
 
 from host.commands._options import PORT_HELP, add_uf2_argument, ranged
-from host.commands.calibrate import add_gauge_arguments, add_method_arguments, make_rig, method_options
+from host.commands.calibrate import DEFAULT, add_gauge_arguments, add_method_arguments, make_rig, method_options
 from host.errors import UserError
 
 
@@ -27,7 +27,7 @@ def add_parser(subparsers):
     add_gauge_arguments(p)
     p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
     p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over full scale, mm (real boards)")
-    p.add_argument("--rounds", type=ranged(int, 1, 20), default=2, help="force identification rounds (paper: 5; default 2)")
+    p.add_argument("--rounds", type=ranged(int, 1, 20), default=DEFAULT.rounds, help="force identification rounds (paper: 5; default %(default)s)")
     p.add_argument("--held-out-seed", type=ranged(int, 0, 2**31 - 1), default=None, metavar="N",
                    help="seed of the held-out positions and forces (default: drawn from the clock and printed; give "
                    "a run's seed from its results.json to repeat its targets)")

@@ -76,3 +76,21 @@ def test_every_tag_in_the_firmware_is_explained_in_docs_firmware_md():
     explained = set(re.findall(r"^- \*\*\[([a-z-]+)\]\*\*", (root / "docs" / "firmware.md").read_text(), re.M))
     assert used and used == explained, "in the code only: %s; in docs/firmware.md only: %s" % (
         sorted(used - explained), sorted(explained - used))
+
+
+def test_the_calibration_options_default_as_the_cli_does():
+    """`host experiment paper` takes the options it has no flag for from Options' defaults, and
+    `host calibrate` takes its flags' defaults from there too: with no flags the two agree (a
+    default changed in one place only would fail here)."""
+    from host.cli import build_parser
+    from host.commands.calibrate import options_from
+    from host.guided.flow import Options
+
+    args = build_parser().parse_args(["calibrate", "--out", "/tmp/lsea-unused/calibration.json", "--no-flash"])
+    args.plots = "/tmp/lsea-unused"
+    from_cli, default = options_from(args), Options()
+    for name in ("reference", "manual_points", "model", "order", "budget", "duty", "df_order", "force_order",
+                 "gauge_sides", "friction", "trim", "anchor_mm", "rounds", "levels", "max_duty", "force_range", "fix"):
+        assert getattr(from_cli, name) == getattr(default, name), name
+    experiment = build_parser().parse_args(["experiment", "paper", "--out", "/tmp/lsea-unused"])
+    assert experiment.rounds == default.rounds
