@@ -151,7 +151,6 @@ class PaperRun:
         results["model"] = "%s%s" % (opts.model, "" if order is None else " order %d" % order)
         if opts.model == "auto":
             results["model"] += " (budget %d numbers)" % opts.budget
-        results["stroke_nominal_mm"] = list(opts.stroke)
 
     def calibration(self, results):
         """All of the guided calibration (bringup first, as a full `host calibrate` does: wiring
@@ -177,6 +176,7 @@ class PaperRun:
         _save_columns(self.out_dir / "df-samples.csv", {"d1_mm": asm["d1_mm"], "df_mm": asm["df_mm"], "direction": asm["direction"]})
         _save_columns(self.out_dir / "force-points.csv", {"d_mm": frc["d_mm"], "force_n": frc["force_n"], "s": frc["s"],
                                                           "loading": frc["loading"], "duty": frc["duty"]})
+        results["stroke_nominal_mm"] = list(opts.stroke)  # follow_the_actuator set it from the board
         status = session.client.call("status")
         results["stroke_in_force_mm"] = [v / 1000.0 for v in status["stroke_um"]]
         # the end stops the pots step measured, in D2's frame: pot 2's mounting error can stretch or
