@@ -148,16 +148,29 @@ def _push(client, duty, seconds, rest_s=REST_S):
 
 
 def probe_wiring(session, rig, prompter, opts):
-    """Run the pulses and return a Wiring."""
-    client, board = session.client, session.board
-    full = (1 << board["adc_bits"]) - 1
+    """Run the checks in order, each only if the one before found nothing wrong: the pots at rest,
+    a free push (motor and pot directions), a push against the 0 mm end stop (which pot is which).
+    Returns a Wiring."""
     w = Wiring()
-    acquire.reset(client)
+    acquire.reset(session.client)
     if opts.reference == "adc":
         rig.mount_reference("pot2")  # on the block: which way the block really moves
     else:
         rig.no_load()
-    rest = acquire.collect(client, REST_S)
+    rest = _check_rest(w, session)
+    if w.problems:
+        return w
+    toward_zero = _free_push(w, session, prompter, opts, rest)
+    if toward_zero is not None:
+        _end_stop_push(w, session, prompter, toward_zero)
+    return w
+
+
+def _check_rest(w, session):
+    """Each pot at rest: at a rail (a wire off), noisy, or quiet enough; returns the rest samples."""
+    board = session.board
+    full = (1 << board["adc_bits"]) - 1
+    rest = acquire.collect(session.client, REST_S)
     if not len(rest):
         raise UserError("no telemetry from the board")
     stats = _stats(rest)
@@ -178,8 +191,15 @@ def probe_wiring(session, rig, prompter, opts):
                 w.lines.append("%s: %.1f codes of noise at rest is more than force control near 5 N tolerates (the "
                                "load-force estimate rides it): \"oversample\": %d in the board file brings it to about "
                                "%.1f (--fix writes it)" % (label, std, n, std * (now / n) ** 0.5))
-    if w.problems:
-        return w
+    return rest
+
+
+def _free_push(w, session, prompter, opts, rest):
+    """A free push toward the middle (as far as we know where it is) and back: did the motor turn
+    the way it should, and does each pot's code rise with position? Returns the duty sign that
+    drives the nut toward 0 mm, or None when the direction the block moved is unknown."""
+    client, board = session.client, session.board
+    full = (1 << board["adc_bits"]) - 1
     block = _block_mm(rest, board, opts, session.actuator)
     lo, hi = opts.stroke or stroke.DEFAULT_MM
     if block is not None:
@@ -187,8 +207,7 @@ def probe_wiring(session, rig, prompter, opts):
         if not lo + END_MARGIN_MM <= block <= hi - END_MARGIN_MM:
             raise UserError("the block is at %.1f mm: move it toward mid-stroke (by hand, motor off) and run "
                             "bringup again" % block)
-    # a free push toward the middle, as far as we know where the middle is
-    where = block if block is not None else lo + (hi - lo) * stats["raw2"][0] / full
+    where = block if block is not None else lo + (hi - lo) * acquire.mean(rest, "raw2") / full
     sign = 1 if where < (lo + hi) / 2.0 else -1
     before, after = _push(client, sign * FREE_DUTY, FREE_S)
     d = {c: acquire.mean(after, c) - acquire.mean(before, c) for c in ("raw1", "raw2")}
@@ -199,7 +218,7 @@ def probe_wiring(session, rig, prompter, opts):
     if not w.moved:
         w.problems.append("a push of duty %+d moved neither pot: check the motor supply, the bridge wiring (motor_pins) "
                           "and that nothing blocks the actuator" % (sign * FREE_DUTY))
-        return w
+        return None
     for c, pot in (("raw1", "pot1"), ("raw2", "pot2")):
         if not moved[c]:
             w.problems.append("%s did not change while the actuator moved: check its wiper wire" % pot)
@@ -219,11 +238,13 @@ def probe_wiring(session, rig, prompter, opts):
             if moved[c]:
                 w.falls[pot] = (d[c] > 0) != (direction > 0)
     _push(client, -sign * FREE_DUTY, FREE_S, rest_s=0.1)  # back where it was
-    if direction is None:
-        return w
-    toward_zero = -direction * sign  # the duty sign that drives the nut toward 0 mm
-    # pot assignment: at the 0 mm end stop the block cannot follow the nut, so a firm push
-    # compresses the spring past its preload and only the nut's pot moves
+    return None if direction is None else -direction * sign
+
+
+def _end_stop_push(w, session, prompter, toward_zero):
+    """Which pot is which: at the 0 mm end stop the block cannot follow the nut, so a firm push
+    compresses the spring past its preload and only the nut's pot moves."""
+    client = session.client
     prompter.say("  the block now runs slowly to its 0 mm end stop and is pushed against it for %.1f s" % HOLD_S)
     with acquire.open_stroke(client):
         acquire.drive_to_stop(client, toward_zero * FREE_DUTY)
@@ -245,7 +266,6 @@ def probe_wiring(session, rig, prompter, opts):
     else:
         w.problems.append("pushed against the end stop, both pots moved (%.0f and %.0f codes): is the end stop on the "
                           "block? pot 1/pot 2 assignment not checked" % (d1, d2))
-    return w
 
 
 def describe(w, board_file):
