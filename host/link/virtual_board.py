@@ -110,7 +110,7 @@ def firmware_sources(board):
 
 
 # The simulated actuator's calibration, made by the project's own guided calibration on
-# boards/sim.json (`python -m boards.sim.make_calibration` makes it again; a test checks that it
+# boards/sim.json (`python boards/make_sim_calibration.py` makes it again; a test checks that it
 # still matches the model): what `--port sim` and `host sim` start with, so that a newcomer can
 # move the actuator within seconds instead of after a 5-minute `host calibrate`.
 READY_CALIBRATION = REPO / "boards" / "sim" / "calibration.json"
