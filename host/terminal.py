@@ -1,5 +1,6 @@
 """Terminal manners: progress and warnings on stderr (--quiet silences progress, never a warning),
-results on stdout.
+results on stdout; a guided run's talk with its person on stderr (`tell`; with --yes nobody is
+asking, and it is progress).
 
 On a terminal a progress line is rewritten in place (`\\r`); written to a file or a pipe each
 update is a line of its own, at most one a `every` seconds, so a saved log stays readable.
@@ -43,6 +44,13 @@ def note(text):
     """A progress message on a line of its own on stderr (nothing under --quiet)."""
     if not _state["quiet"]:
         print(text, file=sys.stderr, flush=True)
+
+
+def tell(text):
+    """A line for the person at the bench (a guided run's instructions and each step's figures,
+    which they judge before answering) on stderr: also under --quiet while someone answers."""
+    end_progress()
+    print(text, file=sys.stderr, flush=True)
 
 
 def warn(text):

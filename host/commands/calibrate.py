@@ -131,7 +131,7 @@ def options_from(args):
                    **method_options(args))
 
 
-def calibrate(args, say=print, ask=None, log=None):
+def calibrate(args, say=None, ask=None, log=None):
     """Run the requested steps; returns {step: StepOutcome} (used by host experiment too). `log`
     (host.guided.run_log.RunLog) records each step's results as it finishes."""
     from host.guided.prompts import Prompter
@@ -141,6 +141,7 @@ def calibrate(args, say=print, ask=None, log=None):
     opts = options_from(args)
     steps = (BRINGUP,) + STEPS if args.step == "all" else (args.step,)
     prompter = Prompter(yes=args.yes, ask=ask, out=say)
+    say = prompter.say  # one channel for the run's talk: the steps', the session's and flashing's
     with Session(args.port, args.board, opts.out, say=say, uf2=args.uf2) as session:
         if args.yes and session.virtual is None and opts.reference == "manual":
             raise UserError("--yes with --reference manual: nobody to read the dial gauge")

@@ -6,7 +6,7 @@ Answering "a" (or end of input, Ctrl-D) to any question aborts the whole calibra
 """
 
 
-from host.terminal import end_progress, progress_line  # noqa: F401  (the guided steps' progress)
+from host.terminal import end_progress, note, progress_line, tell  # noqa: F401  (the guided steps' progress)
 
 from host.errors import UserError
 
@@ -17,9 +17,11 @@ class Aborted(UserError):
 
 class Prompter:
     def __init__(self, yes=False, ask=None, out=None):
+        """`out` takes what is said (default: on stderr; under --quiet silenced with `yes`, where
+        nobody answers, and kept without it, where a person judges what they are asked about)."""
         self.yes = yes
         self._ask = ask or input
-        self._out = out or (lambda text: print(text, flush=True))
+        self._out = out or (note if yes else tell)
 
     def say(self, text):
         self._out(text)

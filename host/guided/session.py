@@ -15,9 +15,11 @@ from host.link.flashing import resolve_board
 
 
 class Session:
-    def __init__(self, port, board=None, calibration=None, say=print, uf2=None):
+    def __init__(self, port, board=None, calibration=None, say=None, uf2=None):
         self.board_arg = board
         self.calibration = Path(calibration) if calibration else None
+        if say is None:
+            from host.terminal import note as say
         self.say = say
         existing = self.calibration if self.calibration and self.calibration.is_file() else None
         self.connection = Connection(port, board, existing, uf2=uf2, progress=say)

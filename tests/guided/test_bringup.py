@@ -32,7 +32,7 @@ def bringup(tmp_path, board, *extra):
 
 def test_a_well_wired_actuator_passes_and_a_full_run_then_skips_bringup(tmp_path, capsys):
     code, record = bringup(tmp_path, board_file(tmp_path))
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err  # the run's talk is on stderr; stdout has the one result line
     assert code == 0 and record["ok"] and record["problems"] == [], out
     assert "pot 1 moved" in out and "loop period" in out and "micropython" in out
     from host.guided.flow import bringup_done
@@ -54,13 +54,15 @@ def test_a_miswired_actuator_is_found_named_and_fixed(tmp_path, capsys, wiring, 
     before = board.read_text()
     code, record = bringup(tmp_path, board)
     out = capsys.readouterr()
-    assert code == 2 and not record["ok"], out.out
+    assert code == 2 and not record["ok"], out.err
     assert any(setting in p for p in record["problems"]), record["problems"]
-    assert "bringup found" in out.err and len(out.err.strip().splitlines()) == 1
+    errors = [line for line in out.err.splitlines() if line.startswith("error:")]
+    assert len(errors) == 1 and "bringup found" in errors[0] and out.err.strip().splitlines()[-1] == errors[0]
+    assert out.out == ""
     assert board.read_text() == before  # nothing changed without consent
 
     code, record = bringup(tmp_path, board, "--fix")
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err
     assert code == 0 and record["ok"], out
     fixed = json.loads(board.read_text())
     for key, value in fix.items():
@@ -122,13 +124,31 @@ def test_noisy_pots_get_more_reads_per_step_with_consent(tmp_path, capsys):
         doc["actuator"]["pots"][pot]["noise_lsb"] = 5.0
     board.write_text(json.dumps(doc, indent=1))
     code, record = bringup(tmp_path, board)
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err
     assert code == 0 and record["ok"], out
     assert '"oversample": 16 in the board file' in out and json.loads(board.read_text())["oversample"] == 4
     before = max(record["noise_codes"].values())
     code, record = bringup(tmp_path, board, "--fix")
-    out = capsys.readouterr().out
+    out = capsys.readouterr().err
     assert code == 0 and record["ok"], out
     assert json.loads(board.read_text())["oversample"] == 16
     after = [float(v) for v in __import__("re").findall(r"after the fix: pot \d at rest: code \d+ of \d+, noise ([0-9.]+) codes", out)]
     assert len(after) == 2 and max(after) < 0.7 * before, (before, after, out)
+
+
+def test_quiet_leaves_only_the_result_line(tmp_path, capsys):
+    """`host -q calibrate --yes`: nobody answers, so the run's talk (steps, flashing) is progress
+    and --quiet silences it; the result line stays on stdout."""
+    from host import cli
+
+    from host import terminal
+
+    board = board_file(tmp_path)
+    try:
+        code = cli.main(["-q", "calibrate", "bringup", "--port", "sim", "--board", str(board), "--yes",
+                         "--out", str(tmp_path / "cal.json")])
+    finally:
+        terminal.set_quiet(False)  # for the tests after this one in the same process
+    out = capsys.readouterr()
+    assert code == 0, out.err
+    assert out.err == "" and len(out.out.strip().splitlines()) == 1 and "accepted" in out.out, out
