@@ -40,6 +40,13 @@ def progress_line(text, every=0.0):
     sys.stderr.flush()
 
 
+def live(text):
+    """A status worth seeing only as it changes (which order a fit is at): rewritten in place on a
+    terminal, not written at all to a file or a pipe, where the lines that follow say the same."""
+    if _tty():
+        progress_line(text)
+
+
 def note(text):
     """A progress message on a line of its own on stderr (nothing under --quiet)."""
     if not _state["quiet"]:

@@ -1,11 +1,11 @@
 """`host compare`: objective vs order for every calibration model on one sweep (paper Fig. 3a)."""
 
-import sys
 import time
 from pathlib import Path
 
 from host.commands._options import ranged
 from host.errors import UserError
+from host.terminal import end_progress, live, note, warn
 from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
 
 
@@ -61,31 +61,19 @@ def run(args):
         noise = estimate_noise(sweep.x, sweep.y, sweep.direction)
     except ValueError:
         noise = None
-    if not args.quiet:
-        print("%s: %s; noise floor %s" % (args.sweep, sweep.describe(), "%.4g" % noise if noise else "unknown"),
-              file=sys.stderr)
+    note("%s: %s; noise floor %s" % (args.sweep, sweep.describe(), "%.4g" % noise if noise else "unknown"))
     t0 = time.perf_counter()
-
-    started = set()
+    shown = {}
 
     def on_order(name, order):
-        # a long sweep can keep one model busy for a minute: show each order as it starts
-        if args.quiet:
-            return
-        if name not in started:
-            started.add(name)
-            print("[%d/%d] %-7s orders" % (models.index(name) + 1, len(models), name), end="", file=sys.stderr)
-        print(" %d" % order, end="", file=sys.stderr, flush=True)
+        # a long sweep can keep one model busy for a minute: on a terminal, each order as it starts
+        shown[name] = shown.get(name, "[%d/%d] %-7s orders" % (models.index(name) + 1, len(models), name)) + " %d" % order
+        live(shown[name])
 
     def progress(name, i, n, seconds):
-        if args.quiet:
-            return
         left = time_left(time.perf_counter() - t0, i, n)  # wall time: with --jobs the fits overlap
-        if name in started:  # its orders were shown as they started
-            print(": %d fits in %.2f s%s" % (len(orders), seconds, left), file=sys.stderr, flush=True)
-        else:  # worker processes: one line per model as it completes
-            print("[%d/%d] %-7s %d fits in %.2f s%s" % (i, n, name, len(orders), seconds, left), file=sys.stderr,
-                  flush=True)
+        end_progress()
+        note("[%d/%d] %-7s %d fits in %.2f s%s" % (i, n, name, len(orders), seconds, left))
 
     rows = compare_models(sweep.x, sweep.y, orders, models, noise=noise, progress=progress,
                           on_order=on_order if args.jobs == 1 else None, jobs=args.jobs)
@@ -102,6 +90,6 @@ def run(args):
         print(pivot_markdown(rows, "rms_over_noise", 3))
     failed = [r for r in rows if r["error"]]
     for r in failed:
-        print("note: %s order %d not fitted: %s" % (r["model"], r["order"], r["error"]), file=sys.stderr)
+        warn("%s order %d not fitted: %s" % (r["model"], r["order"], r["error"]))
     print("\n%d fits in %.2f s; wrote %s" % (len(rows), wall, ", ".join(str(p) for p in paths)))
     return 0

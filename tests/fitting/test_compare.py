@@ -120,6 +120,14 @@ def test_cli_progress_says_about_how_long_is_left(tmp_path, jobs):
     assert "left" not in lines[-1], lines[-1]
 
 
+def test_quiet_leaves_stderr_empty_and_the_tables_on_stdout(tmp_path):
+    """--quiet silences the progress (host.terminal, as every command); the results stay."""
+    proc = _cli(_knee_sweep(tmp_path / "knee.csv"), "--orders", "2-3", "--models", "pcm,pwl", "--out",
+                tmp_path / "cmp", "-q")
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+    assert "| order | pcm | pwl |" in proc.stdout
+
+
 def test_time_left_is_the_wall_time_per_model_so_far_times_the_models_to_go():
     from host.commands.compare import time_left
 
