@@ -6,6 +6,8 @@ reason a user can act on (the board file is the user's to edit).
 
 import json
 
+from firmware.protocol import POSITION_LIMIT_UM
+
 DEFAULTS = {"loop_hz": 1000, "oversample": 4, "pwm_freq": 20000, "supply_volts": 5.0}
 REQUIRED = ("name", "adc_bits", "adc_pins", "driver", "motor_pins")
 TIMER_APIS = ("machine", "pyb")
@@ -50,7 +52,7 @@ def check_board(board):
     return board
 
 
-STROKE_LIMIT_MM = 65.5  # positions are whole um within +-65535 (measurement.STROKE_CLAMP_UM)
+STROKE_LIMIT_MM = (POSITION_LIMIT_UM // 100) / 10.0  # 65.5: a stroke's ends in mm, within the positions the board represents
 
 
 def check_stroke(board):

@@ -34,7 +34,7 @@ try:
 except ImportError:  # CPython
     from firmware import portable as micropython
 
-STROKE_CLAMP_UM = const(65535)
+STROKE_CLAMP_UM = const(65535)  # [copied-constants] protocol.POSITION_LIMIT_UM
 _DF_PWL_OFFSET = const(32768)  # [copied-constants] pwl_fixed.DF_PWL_OFFSET
 FORCE_CLAMP_MN = const(1000000)
 

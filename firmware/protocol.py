@@ -43,6 +43,7 @@ MAX_LINE = 200  # longest command line the board accepts (its preallocated line 
 TOKEN_MIN = 0x21  # the bytes a command word may hold: printable ASCII, no space, so no Ctrl-C/D
 TOKEN_MAX = 0x7E
 TELEMETRY_BATCH = 16  # most records in one telemetry frame
+POSITION_LIMIT_UM = 65535  # positions are whole um within +-this (measurement clamps to it): strokes within +-65.5 mm
 INT_LIMIT = 1 << 30  # integer arguments stay within +-2**30, the small-int range of 32-bit boards
 
 # Modes, by number (the `mode` telemetry field; firmware/controller.py's IDLE .. FORCE)
@@ -62,11 +63,11 @@ PARAMS = (
     ("host_timeout_ms", 1000, 0, 600000, "ms"),  # host silence that stops the motor (0 = off)
     ("rail_reads", 4, 1, 1000, "reads"),  # consecutive reads at a rail that make a fault
     ("rail_margin", 0, 0, 255, "codes"),  # codes from the rail that count as "at the rail"
-    ("stroke_min_um", 500, -65535, 65535, "um"),  # soft stroke limits on the block's position D2
-    ("stroke_max_um", 59500, -65535, 65535, "um"),
+    ("stroke_min_um", 500, -POSITION_LIMIT_UM, POSITION_LIMIT_UM, "um"),  # soft stroke limits on the block's position D2
+    ("stroke_max_um", 59500, -POSITION_LIMIT_UM, POSITION_LIMIT_UM, "um"),
     ("slow_zone_um", 5000, 1, 65535, "um"),  # |duty| toward a limit is capped, falling to 0 over this
     ("defl_rate_um", 2, 0, 65535, "um per step"),  # force mode: the deformation setpoint moves at most this per step (0 = jump)
-    ("stop_margin_um", 300, -65535, 65535, "um"),  # the soft limits stay this far inside the calibrated end stops
+    ("stop_margin_um", 300, -POSITION_LIMIT_UM, POSITION_LIMIT_UM, "um"),  # the soft limits stay this far inside the calibrated end stops
     ("pos_deadband_um", 8, 0, 20000, "um"),  # position mode with friction feed-forward: parked (no push, no integration) inside this, until 3x it
 )
 PARAM_NAMES = tuple(row[0] for row in PARAMS)

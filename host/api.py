@@ -207,7 +207,7 @@ class Board:
     def stroke_limits_um(self):
         """[low, high] um: the soft stroke limits on D2 in force (the parameters, kept off the
         calibrated end stops), as the firmware reports them."""
-        return self.client.call("status").get("stroke_um") or [-65535, 65535]
+        return self.client.call("status").get("stroke_um") or [-P.POSITION_LIMIT_UM, P.POSITION_LIMIT_UM]
 
     def stroke_end(self, d2_um):
         """'0 mm' or '60 mm' when D2 is inside the soft stroke limit's slow zone at that end, else None."""

@@ -2,6 +2,7 @@
 
 from pathlib import Path
 
+from firmware.board_config import STROKE_LIMIT_MM
 from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.errors import UserError
 from host.fitting.models import MODELS
@@ -43,7 +44,7 @@ def add_parser(subparsers):
     p.add_argument("--force-range", type=ranged(float, 1, 25), default=DEFAULT.force_range, metavar="N",
                    help="force: load until the gauge reads this many newtons (default %(default)s: the paper's forces reach 15 N)")
     p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=DEFAULT.max_duty, help="force: largest open-loop duty (default %(default)s)")
-    p.add_argument("--anchor-mm", type=ranged(float, -65.5, 65.5), default=None,
+    p.add_argument("--anchor-mm", type=ranged(float, -STROKE_LIMIT_MM, STROKE_LIMIT_MM), default=None,
                    help="force: where the fibre goes taut, mm (default 75 %% along the stroke: 45 of 0-60 mm)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
     p.add_argument("--fix", action="store_true", help="bringup: write and flash a corrected board file without asking")

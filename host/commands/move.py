@@ -3,6 +3,7 @@ records the move's telemetry over the same connection, --live plots it as it com
 
 import json
 
+from firmware.board_config import STROKE_LIMIT_MM
 from host.api import Board
 from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
 from host.errors import UserError
@@ -13,7 +14,7 @@ from host.terminal import end_progress, progress_line
 def add_parser(subparsers):
     p = subparsers.add_parser("move", help="move the output block to a position (closed loop)")
     add_port_arguments(p)
-    p.add_argument("--to", type=ranged(float, -65.5, 65.5), required=True, metavar="MM", help="target position of the output block, mm (inside the board's soft stroke limits: host status shows them)")
+    p.add_argument("--to", type=ranged(float, -STROKE_LIMIT_MM, STROKE_LIMIT_MM), required=True, metavar="MM", help="target position of the output block, mm (inside the board's soft stroke limits: host status shows them)")
     p.add_argument("--tolerance", type=ranged(float, 0.001, 60), default=0.2, metavar="MM", help="settled when within this, mm (default 0.2)")
     p.add_argument("--timeout", type=ranged(float, 0.1, 3600), default=15.0, metavar="S", help="give up after S seconds (default 15)")
     p.add_argument("--hold", action="store_true", help="leave position mode on at the end (the firmware stops the motor "

@@ -52,7 +52,7 @@ def _stalled(records, seconds, hz=STREAM_HZ):
     return all(np.ptp(tail[:, COL[c]]) <= STALL_CODES for c in ("raw1", "raw2"))
 
 
-OPEN_STROKE = {"stroke_min_um": -65535, "stroke_max_um": 65535, "stop_margin_um": -65535}
+OPEN_STROKE = {"stroke_min_um": -P.POSITION_LIMIT_UM, "stroke_max_um": P.POSITION_LIMIT_UM, "stop_margin_um": -P.POSITION_LIMIT_UM}
 
 
 @contextlib.contextmanager

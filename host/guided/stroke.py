@@ -8,13 +8,15 @@ measures the real one: it finds the block's end stops and puts their middle at t
 nominal stroke, so positions mean the same on the board, in the reference's readings and in the
 experiments' targets.
 
-Positions are whole micrometres within +-65.535 mm on the board (firmware/measurement.py
-STROKE_CLAMP_UM), so a stroke must lie within that: 0-65 mm. A longer actuator needs the
+Positions are whole micrometres within +-65.535 mm on the board (firmware/protocol.py
+POSITION_LIMIT_UM, which measurement.py clamps to), so a stroke must lie within that: 0-65 mm. A longer actuator needs the
 firmware's position range widened first.
 """
 
+from firmware.board_config import STROKE_LIMIT_MM
+
 DEFAULT_MM = (0.0, 60.0)
-LIMIT_MM = 65.5  # |position| the firmware represents (STROKE_CLAMP_UM)
+LIMIT_MM = STROKE_LIMIT_MM  # |position| the firmware represents (protocol.POSITION_LIMIT_UM)
 SWEEP_FRACTION = 0.9  # a pot's sweep must cover this much of the stroke (checks.Limits.min_range_mm)
 ANCHOR_FRACTION = 0.75  # the force gauge's default anchor, along the stroke (45 mm of 60)
 ENDS_MM = 1.0  # the displacement targets' first and last, this far inside the stroke

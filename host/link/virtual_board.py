@@ -37,6 +37,7 @@ try:  # POSIX only: a pseudo-terminal. Everything else in the host works without
 except ImportError:  # Windows
     fcntl = termios = tty = None
 
+from firmware.board_config import STROKE_LIMIT_MM
 from firmware.protocol import SYNC
 from host.link.board_line_endings import BoardLineEndings
 from host.errors import UserError, install_hint
@@ -146,7 +147,7 @@ LOAD_METAVAR = "none|gauge[@MM]|gauge-low[@MM]|constant:N"
 _GAUGE_SIDES = {"gauge": "high", "gauge-low": "low"}
 
 
-STROKE_MM = 65.5  # where a gauge's fibre can go taut: somewhere along a stroke the firmware represents (+-65.5 mm)
+STROKE_MM = STROKE_LIMIT_MM  # where a gauge's fibre can go taut: somewhere along a stroke the firmware represents
 CONSTANT_LOAD_MAX_N = 100  # several times what the actuator can push; beyond it the model's numbers run away
 
 
