@@ -159,8 +159,9 @@ def keep_dated_copy(path):
     return backup
 
 
-def read_calibration(path):
-    """The verified payload dict of the calibration file at `path` (UserError if unusable)."""
+def read_calibration(path, with_crc=False):
+    """The verified payload dict of the calibration file at `path` (UserError if unusable); with
+    `with_crc`, (payload, the CRC the firmware reports for it)."""
     path = Path(path)
     check_user_file(path, "calibration file", MAX_FILE_BYTES)
     try:
@@ -168,12 +169,12 @@ def read_calibration(path):
     except OSError as e:
         raise UserError("cannot read %s: %s" % (path, e.strerror)) from None
     try:
-        body, _ = parse_document(raw.decode("utf-8"))
+        body, crc = parse_document(raw.decode("utf-8"))
     except UnicodeDecodeError:
         raise UserError("calibration file %s: not a text file" % path) from None
     except CalibrationError as e:
         raise UserError("calibration file %s: %s" % (path, e)) from None
-    return body
+    return (body, crc) if with_crc else body
 
 
 def _set_section(doc, name, section):

@@ -2,7 +2,6 @@
 
 import json
 
-from firmware.calibration import parse_document
 from host.calibration.file import read_calibration
 from host.calibration.report import compare, describe
 
@@ -21,20 +20,14 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
-def _crc(path):
-    """The file's CRC (read_calibration has already checked it)."""
-    with open(path) as f:
-        return parse_document(f.read())[1]
-
-
 def run(args):
-    a = read_calibration(args.file)  # UserError with one line when it is not a usable calibration
+    a, crc = read_calibration(args.file, with_crc=True)  # UserError with one line when it is not a usable calibration
     if args.other is None:
         if args.json:
             print(json.dumps(a, indent=1, sort_keys=True))
         else:
             print("%s:" % args.file)
-            print("\n".join("  " + line for line in describe(a, _crc(args.file))))
+            print("\n".join("  " + line for line in describe(a, crc)))
         return 0
     b = read_calibration(args.other)
     if args.json:

@@ -90,8 +90,7 @@ class Session:
         """Install `calibration` on the board; returns the CRC the firmware reports."""
         from host.calibration.file import read_calibration
 
-        read_calibration(calibration)  # refuse a corrupt file before touching the board
-        crc_file = file_crc32(calibration)
+        _, crc_file = read_calibration(calibration, with_crc=True)  # a corrupt file is refused before the board is touched
         status = self.connection.reflash(self.board_path, calibration, progress=lambda m: self.say("  flash: " + m),
                                          ask_board=False)  # this session identified the board when it opened
         got = status.get("calibration_crc")
@@ -108,10 +107,3 @@ class Session:
                                          ask_board=False)
         self.board_path, self.board = resolve_board(str(board_path))
         return status
-
-
-def file_crc32(path):
-    """The CRC the firmware reports for the calibration file at `path` (its envelope's crc32)."""
-    import json
-
-    return json.loads(Path(path).read_text())["crc32"]
