@@ -12,7 +12,7 @@ viper step touches it with single loads and stores; the attributes people and te
 """
 
 from firmware import hal
-from firmware.portable import const, ptr32, zeros
+from firmware.portable import const, ptr32, word_property, zeros
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -99,34 +99,12 @@ class Sampler:
         self.st[HAS_REF] = 0 if adc is None else 1
 
     # --- the block's fields, for people and tests -----------------------------------------------
-    @property
-    def raw1(self):
-        return self.st[RAW1]
-
-    @property
-    def raw2(self):
-        return self.st[RAW2]
-
-    @property
-    def raw_ref(self):
-        return self.st[RAW_REF]
-
-    @property
-    def rail(self):
-        return self.st[RAIL]
-
-    @property
-    def rail_value(self):
-        return self.st[RAIL_VALUE]
-
-    @property
-    def rail_reads(self):
-        """Consecutive reads at a rail that make a fault."""
-        return self.st[NEED]
-
-    @rail_reads.setter
-    def rail_reads(self, n):
-        self.st[NEED] = n
+    raw1 = word_property(RAW1)
+    raw2 = word_property(RAW2)
+    raw_ref = word_property(RAW_REF)
+    rail = word_property(RAIL)
+    rail_value = word_property(RAIL_VALUE)
+    rail_reads = word_property(NEED, True)  # consecutive reads at a rail that make a fault
 
     @property
     def rail_margin(self):

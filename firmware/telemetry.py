@@ -12,7 +12,7 @@ which a bytearray would not. The counters live in one int32 block, `Ring.st`;
 modulo 2**30, stepped without ever forming 2**30, so they stay small ints for any uptime.
 """
 
-from firmware.portable import const, ptr32, zeros
+from firmware.portable import const, ptr32, word_property, zeros
 
 try:
     import micropython  # @micropython.viper is resolved by MicroPython's compiler
@@ -55,25 +55,9 @@ class Ring:
         self.st[HEAD] = v
         self.st[SLOT] = v % self.n
 
-    @property
-    def tail(self):
-        return self.st[TAIL]
-
-    @tail.setter
-    def tail(self, v):
-        self.st[TAIL] = v
-
-    @property
-    def dropped(self):
-        return self.st[DROPPED]
-
-    @property
-    def every(self):
-        return self.st[EVERY]
-
-    @every.setter
-    def every(self, v):
-        self.st[EVERY] = v
+    tail = word_property(TAIL, True)
+    dropped = word_property(DROPPED)
+    every = word_property(EVERY, True)
 
     def clear(self):
         self.st[TAIL] = self.st[HEAD]
