@@ -30,6 +30,50 @@ def ranged(kind, lo, hi):
     return parse
 
 
+def parsed(parse, name):
+    """An argparse type from `parse`, whose ValueError becomes argparse's one-line error."""
+
+    def conv(text):
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    conv.__name__ = name
+    return conv
+
+
+def order_or_auto(top):
+    """An argparse type: "auto" or a whole number within 1..top."""
+    whole = ranged(int, 1, top)
+
+    def parse(text):
+        if text == "auto":
+            return "auto"
+        try:
+            return whole(text)
+        except argparse.ArgumentTypeError:
+            raise argparse.ArgumentTypeError("%r is neither auto nor an order 1..%d" % (text, top)) from None
+
+    parse.__name__ = "order 1..%d or auto" % top
+    parse.range = whole.range  # a numeric option: tests/cli/test_numbers.py tries it with bad numbers
+    return parse
+
+
+def nonzero(kind):
+    """An argparse type: what `kind` accepts, except 0."""
+
+    def parse(text):
+        value = kind(text)
+        if value == 0:
+            raise argparse.ArgumentTypeError("must not be 0")
+        return value
+
+    parse.__name__ = "nonzero " + kind.__name__
+    parse.range = getattr(kind, "range", None)
+    return parse
+
+
 def load_option(text):
     """An argparse type: a --load description (host.link.virtual_board.parse_load)."""
     from host.link.virtual_board import parse_load

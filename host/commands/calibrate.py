@@ -3,7 +3,7 @@
 from pathlib import Path
 
 from firmware.board_config import STROKE_LIMIT_MM
-from host.commands._options import PORT_HELP, add_uf2_argument, ranged
+from host.commands._options import PORT_HELP, add_uf2_argument, order_or_auto, ranged
 from host.errors import UserError
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
@@ -51,7 +51,7 @@ def add_parser(subparsers):
     p.set_defaults(func=run)
 
 
-PAPER_METHOD = {"model": "bcm", "order": 3, "df_order": "4", "force_order": "2", "gauge_sides": "high", "no_friction": True}
+PAPER_METHOD = {"model": "bcm", "order": 3, "df_order": 4, "force_order": 2, "gauge_sides": "high", "no_friction": True}
 
 
 def add_method_arguments(p):
@@ -66,9 +66,9 @@ def add_method_arguments(p):
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
     p.add_argument("--budget", type=ranged(int, 4, 4096), default=DEFAULT.budget, help="--model auto: most numbers a pot curve may store "
                    "(default %d: a table of up to %d knots)" % (DEFAULT.budget, DEFAULT.budget // 2 + 1))
-    p.add_argument("--df-order", default=DEFAULT.df_order, help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
+    p.add_argument("--df-order", type=order_or_auto(12), default=DEFAULT.df_order, help="Df polynomial order 1-12, or auto (default): the paper's 4 unless "
                    "cross-validation finds a higher order more than 5 %% better")
-    p.add_argument("--force-order", default=DEFAULT.force_order, help="F0(d) and d(F0) order 1-5, or auto (default, cross-validation); "
+    p.add_argument("--force-order", type=order_or_auto(5), default=DEFAULT.force_order, help="F0(d) and d(F0) order 1-5, or auto (default, cross-validation); "
                    "the paper fits quadratics (2)")
     p.add_argument("--gauge-sides", choices=("high", "low", "both"), default=DEFAULT.gauge_sides,
                    help="force: gauge on the 60 mm side (high: the block pulls toward 0 mm, negative forces, the paper's "
@@ -102,23 +102,8 @@ def method_options(args):
     values = {k: getattr(args, k) for k in PAPER_METHOD}
     if args.paper_method:
         values.update(PAPER_METHOD)
-
-    def order(text, name, top):
-        if text == "auto":
-            return "auto"
-        try:
-            value = int(text)
-        except ValueError:
-            raise UserError("%s must be an integer or auto, not %r" % (name, text)) from None
-        if not 1 <= value <= top:
-            raise UserError("%s must be 1..%d or auto" % (name, top))
-        return value
-
-    if args.budget < 2:
-        raise UserError("--budget must be at least 2")
     return {"model": values["model"], "order": values["order"], "budget": args.budget,
-            "df_order": order(str(values["df_order"]), "--df-order", 12),
-            "force_order": order(str(values["force_order"]), "--force-order", 5),
+            "df_order": values["df_order"], "force_order": values["force_order"],
             "gauge_sides": values["gauge_sides"], "friction": not values["no_friction"], "trim": not args.no_trim}
 
 

@@ -3,7 +3,7 @@
 import time
 from pathlib import Path
 
-from host.commands._options import ranged
+from host.commands._options import parsed, ranged
 from host.errors import UserError
 from host.terminal import end_progress, live, note, warn
 from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
@@ -18,9 +18,10 @@ def add_parser(subparsers):
         "PNG plot (log scale, noise floor drawn) and a table (Markdown + CSV, also printed).",
     )
     p.add_argument("sweep", metavar="SWEEP.csv", help="sweep CSV with columns raw,reference[,direction]")
-    p.add_argument("--orders", default="2-15", help="orders to fit, e.g. 2-15 or 2,3,5 (default 2-15)")
+    p.add_argument("--orders", type=parsed(parse_orders, "orders"), default="2-15", help="orders to fit, e.g. 2-15 or 2,3,5 (default 2-15)")
     p.add_argument(
         "--models",
+        type=parsed(parse_models, "models"),
         default=",".join(DEFAULT_MODELS),
         help="comma-separated models, or 'all' (default %s)" % ",".join(DEFAULT_MODELS),
     )
@@ -49,13 +50,7 @@ def run(args):
     from host.fitting.noise_floor import estimate_noise
     from host.fitting.sweep import load_sweep
 
-    try:
-        orders = parse_orders(args.orders)
-        models = parse_models(args.models)
-    except ValueError as exc:
-        raise UserError(str(exc)) from None
-    if args.jobs < 1:
-        raise UserError("--jobs must be at least 1")
+    orders, models = args.orders, args.models
     sweep = load_sweep(args.sweep)
     try:
         noise = estimate_noise(sweep.x, sweep.y, sweep.direction)

@@ -51,7 +51,7 @@ def run(args):
     from host.link.connect import virtual_kind
 
     prompter = Prompter(yes=args.yes or virtual_kind(args.port) is not None)
-    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=max(1, args.rounds), fix=args.fix,
+    opts = Options(out=out_dir / "calibration.json", out_dir=out_dir, rounds=args.rounds, fix=args.fix,
                    **method_options(args))
     results = {}
     try:

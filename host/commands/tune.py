@@ -3,7 +3,8 @@
 
 import json
 
-from host.commands._options import add_port_arguments, ranged
+from firmware.pi_control import GAIN_MAX
+from host.commands._options import add_port_arguments, nonzero, parsed, ranged
 from host.errors import UserError
 from host.guided.tuning import LOOPS, tune
 from host.link.connect import Connection
@@ -15,15 +16,16 @@ DEFAULTS = {  # mode -> (start, step, band) in the shown unit (mm or N)
 }
 
 
-def _values(text):
+def gain_list(text):
+    """'500,768,1000' -> [500, 768, 1000] (ValueError saying what is wrong)."""
     try:
         values = [int(v) for v in text.split(",") if v.strip()]
     except ValueError:
-        raise UserError("gain list %r: whole numbers separated by commas, e.g. 500,768,1000" % text) from None
+        raise ValueError("gain list %r: whole numbers separated by commas, e.g. 500,768,1000" % text) from None
     if not values:
-        raise UserError("gain list %r is empty: whole numbers separated by commas, e.g. 500,768,1000" % text)
-    if any(not 0 <= v <= 32767 for v in values):
-        raise UserError("gain list %r: values must be within 0..32767" % text)
+        raise ValueError("gain list %r is empty: whole numbers separated by commas, e.g. 500,768,1000" % text)
+    if any(not 0 <= v <= GAIN_MAX for v in values):
+        raise ValueError("gain list %r: values must be within 0..%d" % (text, GAIN_MAX))
     return values
 
 
@@ -40,14 +42,14 @@ def add_parser(subparsers):
     p.add_argument("mode", choices=sorted(LOOPS), help="the loop to tune")
     p.add_argument("--start", type=ranged(float, -200, 200), default=None,
                    help="value held before the step: mm (position, default 25) or N (force, default -1)")
-    p.add_argument("--step", type=ranged(float, -200, 200), default=None,
+    p.add_argument("--step", type=nonzero(ranged(float, -200, 200)), default=None,
                    help="size of the step: mm (default 5) or N (default -2)")
     p.add_argument("--duration", type=ranged(float, 0.2, 60), default=1.5, metavar="S",
                    help="seconds recorded after the step (default 1.5)")
     p.add_argument("--band", type=ranged(float, 0.0001, 100), default=None,
                    help="settled within target +- this: mm (default 0.05) or N (default 0.1)")
-    p.add_argument("--kp", type=str, default=None, metavar="LIST", help="proportional gains to try, e.g. 500,768,1000")
-    p.add_argument("--ki", type=str, default=None, metavar="LIST", help="integral gains to try, e.g. 8,16,32")
+    p.add_argument("--kp", type=parsed(gain_list, "gain list"), default=None, metavar="LIST", help="proportional gains to try, e.g. 500,768,1000")
+    p.add_argument("--ki", type=parsed(gain_list, "gain list"), default=None, metavar="LIST", help="integral gains to try, e.g. 8,16,32")
     p.add_argument("--png", default=None, metavar="FILE", help="plot of the responses (default tune-MODE.png)")
     p.add_argument("--apply", action="store_true", help="keep the recommended gains on the board (until it restarts)")
     p.add_argument("--save", action="store_true", help="keep the recommended gains on the board across restarts")
@@ -94,13 +96,11 @@ def run(args):
     start = args.start if args.start is not None else start
     step = args.step if args.step is not None else step
     band = args.band if args.band is not None else band
-    if step == 0:
-        raise UserError("--step must not be 0")
     grid = {}
-    if args.kp is not None:  # --kp "" is a mistake to report, not the defaults
-        grid[names[0]] = _values(args.kp)
+    if args.kp is not None:  # --kp "" is a mistake argparse reported, not the defaults
+        grid[names[0]] = args.kp
     if args.ki is not None:
-        grid[names[1]] = _values(args.ki)
+        grid[names[1]] = args.ki
     png = args.png or "tune-%s.png" % args.mode
 
     def progress(i, n, gains):

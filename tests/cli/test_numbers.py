@@ -53,3 +53,20 @@ def test_a_pot_model_the_fitter_does_not_know_is_refused_before_any_board_work(c
     code = cli.main(args)
     err = capsys.readouterr().err.strip().splitlines()
     assert code == 2 and len(err) == 1 and "--model" in err[0] and "nan" in err[0], err
+
+
+@pytest.mark.parametrize("argv,words", [
+    (["calibrate", "--df-order", "13"], "neither auto nor an order 1..12"),
+    (["experiment", "paper", "--out", "unused", "--force-order", "0"], "neither auto nor an order 1..5"),
+    (["compare", "x.csv", "--orders", "9-3"], "bad order range"),
+    (["compare", "x.csv", "--models", "bcm,nope"], "unknown model"),
+    (["tune", "position", "--kp", "1,a"], "whole numbers separated by commas"),
+    (["tune", "position", "--ki", "40000"], "within 0..32767"),
+    (["tune", "force", "--step", "0"], "must not be 0"),
+])
+def test_options_beyond_numbers_are_checked_by_argparse_too(capsys, argv, words):
+    """Orders, order lists, model lists and gain lists are argparse types: one error line, status 2,
+    before a file is read or a board opened (they were checked after the port had opened)."""
+    code = cli.main(argv)
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and words in err[0], err
