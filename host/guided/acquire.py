@@ -16,7 +16,7 @@ import numpy as np
 
 from firmware import protocol as P
 from host.link import stream
-from host.link.board_time import NO_DATA_S, BoardTime
+from host.link.board_time import NO_DATA_S
 
 COL = {name: i for i, name in enumerate(P.FIELDS)}
 STREAM_HZ = 200
@@ -132,32 +132,20 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
     index = P.FIELDS.index(field)
     board.call("mode", mode)
     board.call("target", int(target))
-    board.start_stream(100)
-    clock = BoardTime()
-    last_data = time.monotonic()
     inside_since = None
     value = None
+    now = 0.0
     recent = []
     next_progress = 0.0
-    try:
-        while clock.seconds < timeout_s:
-            board.heartbeat_if_due()
-            frames = board.frames(timeout=0.05)
-            for frame in frames:
-                rows = frame.records()
-                clock.add(rows)
-                recent.extend(int(v) for v in rows[:, index])
-                if last is not None and len(rows):
-                    last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
-            if frames:
-                last_data = time.monotonic()
-            elif time.monotonic() - last_data >= NO_DATA_S:
-                break
+    with stream.closing(stream.records(board, timeout_s, 100, silence_ends=True)) as frames:
+        for rows, now in frames:
+            recent.extend(int(v) for v in rows[:, index])
+            if last is not None and len(rows):
+                last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
             if not recent:
                 continue
             del recent[:-window]
             value = sum(recent) / len(recent)
-            now = clock.seconds
             if len(recent) == window and abs(value - target) <= tolerance:
                 inside_since = now if inside_since is None else inside_since
                 if now - inside_since >= hold_s:
@@ -167,9 +155,7 @@ def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, pr
             if progress and now >= next_progress:
                 next_progress = now + 0.2  # a readable refresh, not one line per frame
                 progress(value, now)
-        return False, value, clock.seconds
-    finally:
-        board.stop_stream()
+    return False, value, now
 
 
 HOLD_S = 0.2

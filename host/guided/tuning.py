@@ -9,7 +9,6 @@ itself puts back if the host goes silent. Times are the board's: on a real board
 """
 
 import itertools
-import time
 
 import numpy as np
 
@@ -17,7 +16,8 @@ from firmware import protocol as P
 from host.errors import UserError
 from host.fitting.step_response import analyse, best
 from host.guided.acquire import settle
-from host.link.board_time import NO_DATA_S, BoardTime
+from host.link import stream
+from host.link.board_time import BoardTime
 
 # mode -> (telemetry field judged, gain parameters, unit of the field, scale to the shown unit)
 LOOPS = {
@@ -55,32 +55,21 @@ def record_step(board, mode, start, target, duration_s, hold_tolerance, hz=500, 
     field = LOOPS[mode][0]
     index = P.FIELDS.index(field)
     held, _, _ = settle(board, mode, start, field, hold_tolerance, settle_timeout_s)
-    board.start_stream(hz)
-    board.call("target", int(target))
-    clock = BoardTime()
+    clock = BoardTime()  # from the step: the stream's own clock starts a little before it
     rows = []
     stepped = False
-    last_data = time.monotonic()
-    try:
-        while clock.seconds < duration_s:
-            board.heartbeat_if_due()
-            frames = board.frames(timeout=0.05)
-            for frame in frames:
-                r = frame.records()
-                if not stepped:  # records from before the new target reached the step are dropped
-                    keep = np.flatnonzero(r[:, P.FIELDS.index("target")] == int(target))
-                    if not len(keep):
-                        continue
-                    r = r[keep[0]:]
-                    stepped = True
-                clock.add(r)
-                rows.append(r)
-            if frames:
-                last_data = time.monotonic()
-            elif time.monotonic() - last_data >= NO_DATA_S:
-                raise UserError("the board stopped streaming during the step response")
-    finally:
-        board.stop_stream()
+    with stream.closing(stream.records(board, None, hz, started=lambda: board.call("target", int(target)))) as frames:
+        for r, _ in frames:
+            if not stepped:  # records from before the new target reached the step are dropped
+                keep = np.flatnonzero(r[:, P.FIELDS.index("target")] == int(target))
+                if not len(keep):
+                    continue
+                r = r[keep[0]:]
+                stepped = True
+            clock.add(r)
+            rows.append(r)
+            if clock.seconds >= duration_s:
+                break
     if not rows:
         raise UserError("no telemetry after the step")
     data = np.concatenate(rows)
