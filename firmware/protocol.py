@@ -85,8 +85,27 @@ FIELDS = (
     "target",  # the mode's target: duty, um or mN
     "duty",  # signed duty sent to the bridge, [-DUTY_MAX, DUTY_MAX]
     "mode",  # mode number (MODES)
-    "faults",  # fault bit mask (safety.FAULT_NAMES)
+    "faults",  # fault bit mask (FAULT_NAMES)
 )
+# Each field's unit, in FIELDS' order (what they mean, for people: host/link/telemetry_log.py UNITS)
+FIELD_UNITS = ("us", "code", "code", "code", "um", "um", "um", "mN", "duty, um or mN", "duty", "mode", "fault bits")
+
+# Fault bits and their names (firmware/safety.py's FAULT_* constants are these bits: tested equal)
+FAULT_NAMES = (
+    (1, "rail_pot1"),
+    (2, "rail_pot2"),
+    (4, "host_timeout"),
+    (8, "step_exception"),
+    (16, "interrupted"),
+    (32, "run_exception"),
+    (64, "soft_reset"),
+)
+
+# The keys of the `status` object (firmware/app.py App.status; tested equal), in host status's order
+STATUS_KEYS = ("version", "protocol", "board", "calibration_crc", "calibration_error", "mode", "faults", "last_fault",
+               "target", "duty", "stroke_um", "end_stops_um", "params_changed", "params_saved", "params_file_error",
+               "params_restored", "params_temporary", "steps", "period_us", "step_us_max", "overruns", "timer",
+               "interpreter", "mpy", "last_exit", "interface")
 
 # Frame types: (number, name); what each payload holds is in docs/protocol.md
 T_OK = 1
@@ -134,15 +153,14 @@ def interface_text():
     """This table as one line of text, the same on every interpreter: what the board and the host
     must agree on (the frame layout, the telemetry record, the modes, faults, commands and
     parameters). Built from ints and strings only, so CPython and MicroPython write it alike."""
-    from firmware.safety import FAULT_NAMES
 
     def words(items):
         return ",".join(str(x) for x in items)
 
     parts = ["v%d" % PROTOCOL_VERSION, words((SYNC_WORD, HEADER_BYTES, CRC_BYTES, MAX_PAYLOAD, SEQ_MASK, MAX_LINE,
                                               TELEMETRY_BATCH, INT_LIMIT, RECORD_WORDS)),
-             words(FIELDS), words(MODES), words("%d=%s" % t for t in FRAME_TYPES),
-             words("%d=%s" % t for t in FAULT_NAMES)]
+             words(FIELDS), words(FIELD_UNITS), words(MODES), words("%d=%s" % t for t in FRAME_TYPES),
+             words("%d=%s" % t for t in FAULT_NAMES), words(STATUS_KEYS)]
     for name, args, _method, _after in COMMANDS:
         parts.append("%s(%s)" % (name, words("%s:%s=%s" % (a[0], a[1] if a[1] == INT else "|".join(a[1]), a[2])
                                               for a in args)))

@@ -15,6 +15,7 @@ try:
 except ImportError:  # CPython
     from firmware import portable as micropython
 
+# [copied-constants] the bits of protocol.FAULT_NAMES (viper needs them as consts here)
 FAULT_RAIL_POT1 = const(1)
 FAULT_RAIL_POT2 = const(2)
 FAULT_HOST_TIMEOUT = const(4)
@@ -23,15 +24,6 @@ FAULT_INTERRUPTED = const(16)
 FAULT_RUN_EXCEPTION = const(32)
 FAULT_SOFT_RESET = const(64)
 
-FAULT_NAMES = (
-    (FAULT_RAIL_POT1, "rail_pot1"),
-    (FAULT_RAIL_POT2, "rail_pot2"),
-    (FAULT_HOST_TIMEOUT, "host_timeout"),
-    (FAULT_STEP_EXCEPTION, "step_exception"),
-    (FAULT_INTERRUPTED, "interrupted"),
-    (FAULT_RUN_EXCEPTION, "run_exception"),
-    (FAULT_SOFT_RESET, "soft_reset"),
-)
 
 # Safety.st
 FAULTS = const(0)  # latched fault bits
@@ -92,6 +84,8 @@ class Safety:
         self.exc = None
 
     def names(self):
+        from firmware.protocol import FAULT_NAMES  # outside the step: read by status only
+
         return [name for bit, name in FAULT_NAMES if self.faults & bit]
 
     def describe(self, bit=None):

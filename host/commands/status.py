@@ -2,37 +2,40 @@
 
 import json
 
+from firmware.protocol import STATUS_KEYS
 from host.api import Board
 from host.commands._options import add_port_arguments
 
-# known fields first, in this order, with how to show them; any other field follows as it is
-LABELS = (
-    ("version", "firmware version"),
-    ("protocol", "protocol"),
-    ("board", "board"),
-    ("calibration_crc", "calibration CRC"),
-    ("calibration_error", "calibration problem"),
-    ("mode", "mode"),
-    ("faults", "latched faults"),
-    ("last_fault", "last fault"),
-    ("target", "target"),
-    ("duty", "duty (of 10000)"),
-    ("stroke_um", "soft stroke limits on D2 (um)"),
-    ("end_stops_um", "block's end stops in D2 (um)"),
-    ("params_changed", "parameters changed since boot"),
-    ("params_saved", "saved parameters (boot values)"),
-    ("params_file_error", "saved parameters problem"),
-    ("params_restored", "parameters restored"),
-    ("params_temporary", "temporary parameters"),
-    ("steps", "steps since boot (mod 2**30)"),
-    ("period_us", "loop period (us)"),
-    ("step_us_max", "longest step (us)"),
-    ("overruns", "overruns"),
-    ("timer", "loop timer"),
-    ("interpreter", "interpreter"),
-    ("mpy", ".mpy version word"),
-    ("last_exit", "last exit"),
-)
+# how each key of firmware/protocol.py STATUS_KEYS is shown, in that order (a test checks every key
+# has its label); a field a newer firmware adds follows as it is
+LABELS = {
+    "version": "firmware version",
+    "protocol": "protocol",
+    "board": "board",
+    "calibration_crc": "calibration CRC",
+    "calibration_error": "calibration problem",
+    "mode": "mode",
+    "faults": "latched faults",
+    "last_fault": "last fault",
+    "target": "target",
+    "duty": "duty (of 10000)",
+    "stroke_um": "soft stroke limits on D2 (um)",
+    "end_stops_um": "block's end stops in D2 (um)",
+    "params_changed": "parameters changed since boot",
+    "params_saved": "saved parameters (boot values)",
+    "params_file_error": "saved parameters problem",
+    "params_restored": "parameters restored",
+    "params_temporary": "temporary parameters",
+    "steps": "steps since boot (mod 2**30)",
+    "period_us": "loop period (us)",
+    "step_us_max": "longest step (us)",
+    "overruns": "overruns",
+    "timer": "loop timer",
+    "interpreter": "interpreter",
+    "mpy": ".mpy version word",
+    "last_exit": "last exit",
+    "interface": "interface",
+}
 
 
 def add_parser(subparsers):
@@ -49,9 +52,10 @@ def describe(status):
     """The status as 'label: value' lines for a person."""
     lines = []
     seen = set()
-    for key, label in LABELS:
+    for key in STATUS_KEYS:
         if key not in status:
             continue
+        label = LABELS[key]
         seen.add(key)
         value = status[key]
         if key == "calibration_crc" and value is not None:

@@ -15,10 +15,7 @@ DOC = Path(__file__).resolve().parents[2] / "docs" / "protocol.md"
 # What each command returns and does, for people (firmware/protocol.py keeps only what the board
 # checks: a string there costs the board heap); a command without its text here fails render().
 COMMAND_TEXT = {
-    "status": ("object: version, board, calibration crc/error, mode, faults, last_fault, target, duty, steps, "
-               "step_us_max, overruns, period_us, stroke_um, end_stops_um, params_changed, params_saved, "
-               "params_file_error, params_restored, params_temporary, timer, interpreter, mpy, last_exit, protocol, "
-               "interface",
+    "status": ("object: " + ", ".join(P.STATUS_KEYS),
                "identify the firmware and report its state (the handshake)"),
     "stop": ("null", "motor off, mode idle"),
     "mode": ("null", "switch mode"),
@@ -138,11 +135,13 @@ def render():
         "",
         "## Telemetry record (`FIELDS`, int32 each)",
         "",
-        "| word | field |",
-        "|---|---|",
+        "| word | field | unit |",
+        "|---|---|---|",
     ]
-    for i, name in enumerate(P.FIELDS):
-        out.append("| %d | `%s` |" % (i, name))
+    for i, (name, unit) in enumerate(zip(P.FIELDS, P.FIELD_UNITS)):
+        out.append("| %d | `%s` | %s |" % (i, name, unit))
+    out += ["", "## Faults (`FAULT_NAMES`: bit, name; the `faults` field and status)", "", "| bit | name |", "|---|---|"]
+    out += ["| %d | `%s` |" % row for row in P.FAULT_NAMES]
     out.append("")
     return "\n".join(out)
 

@@ -17,26 +17,27 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from firmware.protocol import FIELDS, MODES
-from firmware.safety import FAULT_NAMES
+from firmware.protocol import FAULT_NAMES, FIELD_UNITS, FIELDS, MODES
 from host.link import stream
 from host.link.board_time import NO_DATA_S
 
-# Each column's unit (a new telemetry field must say its unit here: tests check)
-UNITS = {
-    "t_us": "us since the firmware started, wraps at 2**30",
-    "raw1": "ADC code (board-native bits), pot 1",
-    "raw2": "ADC code, pot 2",
-    "raw_ref": "ADC code, reference input (0 without one)",
-    "d1_um": "um, nut position D1* (Df corrected)",
-    "d2_um": "um, output block position D2",
-    "defl_um": "um, spring deformation D1* - D2",
-    "force_mN": "mN, F0(d)",
+# What each column is, for people (a new telemetry field must say it here: tests check); its unit
+# is the interface table's (firmware/protocol.py FIELD_UNITS)
+MEANING = {
+    "t_us": "since the firmware started, wraps at 2**30",
+    "raw1": "pot 1 (board-native bits)",
+    "raw2": "pot 2",
+    "raw_ref": "reference input (0 without one)",
+    "d1_um": "nut position D1* (Df corrected)",
+    "d2_um": "output block position D2",
+    "defl_um": "spring deformation D1* - D2",
+    "force_mN": "F0(d)",
     "target": "the mode's target: duty (open_loop), um (position), mN (force)",
-    "duty": "signed duty, 10000 = 100 %",
-    "mode": "code: see modes",
+    "duty": "signed, 10000 = 100 %",
+    "mode": "see modes",
     "faults": "bit mask: see faults",
 }
+UNITS = {name: "%s: %s" % (unit, MEANING[name]) for name, unit in zip(FIELDS, FIELD_UNITS)}
 
 # What the firmware computes from the calibration; all 0 in records from a board without one.
 CALIBRATED_FIELDS = ("d1_um", "d2_um", "defl_um", "force_mN")

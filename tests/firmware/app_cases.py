@@ -61,6 +61,9 @@ def case_heap_lock(path, mode, target, n=10000):
     st = app.status()
     assert st["faults"] == [], st
     assert st["mode"] == mode, st
+    from firmware.protocol import STATUS_KEYS
+
+    assert sorted(st) == sorted(STATUS_KEYS), sorted(st)  # the interface table names every key
     assert app.ctrl.steps == n + 50
     if mode != "idle":
         assert app.ctrl.duty != 0, "the loop never drove the motor"

@@ -46,6 +46,13 @@ def test_each_copy_equals_what_it_copies(copy, original):
     assert _value(*copy) == _value(*original)
 
 
+def test_the_fault_bits_are_the_interface_tables():
+    from firmware.protocol import FAULT_NAMES
+
+    for bit, name in FAULT_NAMES:
+        assert _value("safety", "FAULT_" + name.upper()) == bit, name
+
+
 def test_the_record_slots_follow_the_telemetry_fields():
     assert sorted(RECORD.values()) == sorted(FIELDS)  # every field has its slot
     for name, field in RECORD.items():

@@ -4,16 +4,26 @@ calibration CRC, loop period, rate, date, each column's unit, the mode and fault
 import json
 
 from firmware.protocol import FIELDS, MODES, VERSION
-from firmware.safety import FAULT_NAMES
+from firmware.protocol import FAULT_NAMES
 import host
 from host import cli
-from host.link.telemetry_log import UNITS, load
+from host.link.telemetry_log import MEANING, UNITS, load
 
 from testkit.model import write_model_calibration
 
 
 def test_every_column_has_a_unit():
-    assert set(UNITS) == set(FIELDS)
+    from firmware.protocol import FIELD_UNITS
+
+    assert len(FIELD_UNITS) == len(FIELDS)  # the interface table's units, one per field
+    assert set(MEANING) == set(FIELDS) and set(UNITS) == set(FIELDS)
+
+
+def test_every_status_key_has_its_label_in_host_status():
+    from firmware.protocol import STATUS_KEYS
+    from host.commands.status import LABELS
+
+    assert set(LABELS) == set(STATUS_KEYS)
 
 
 def test_host_log_writes_the_metadata_beside_the_csv(tmp_path, capsys):
