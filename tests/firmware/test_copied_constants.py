@@ -30,6 +30,7 @@ COPIES = {
     ("controller", "_M_FRIC"): ("measurement", "FRIC"),
     ("controller", "_M_FF_DUTY"): ("measurement", "FF_DUTY"),
     ("measurement", "STROKE_CLAMP_UM"): ("protocol", "POSITION_LIMIT_UM"),
+    ("measurement", "_DF_PWL_OFFSET"): ("pwl_fixed", "DF_PWL_OFFSET"),
     ("calibration", "STROKE_MAX_UM"): ("protocol", "POSITION_LIMIT_UM"),  # not viper: keeps calibration.py light
 }
 RECORD = {"_R_T": "t_us", "_R_RAW1": "raw1", "_R_RAW2": "raw2", "_R_REF": "raw_ref", "_R_D1": "d1_um", "_R_D2": "d2_um",
