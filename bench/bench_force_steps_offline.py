@@ -32,6 +32,8 @@ Diagnostics (each changes what is run, and says so in the tally line):
     --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280
     --oversample N       every board read N times a step (the run's own value is used otherwise)
     --noise LSB          both pots' noise set to LSB (what the loop does with quieter pots)
+    --friction true|identified   the calibration's friction h replaced by the board's true one or
+                         the force step's identified one (what the trim changes)
     --loop-hz HZ         every board's loop rate (CircuitPython's 250 Hz); settle and hold keep
                          their seconds
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
@@ -108,7 +110,7 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
-DIAG = {"oversample": None, "noise": None, "loop_hz": None}  # --oversample, --noise, --loop-hz
+DIAG = {"oversample": None, "noise": None, "loop_hz": None, "friction": None}  # --oversample, --noise, --loop-hz, --friction
 # What the loads are: what the gauge shows (firmware_cases.BenchGauge: noise, display, zero drift,
 # tares with the fibre slack before and after), as a bench measures them; --true-load: the
 # simulator's true load, which no bench has (a diagnostic)
@@ -244,7 +246,24 @@ def calibration(runs, seed, exact, tmp):
     if TRIM["on"]:
         out = os.path.join(tmp, "trim-%s.json" % seed)
         cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, ANCHOR[0] if GAUGE["at"] else REFIT_ANCHOR)
+    if DIAG.get("friction"):
+        cal = friction_replaced(board, cal, os.path.join(tmp, "friction-%s.json" % seed), DIAG["friction"])
     return board, cal
+
+
+def friction_replaced(board, cal, out_path, how):
+    """Diagnostic: the calibration with its friction h replaced by the board's true Coulomb friction
+    ("true") or the force step's identified one before the trim ("identified")."""
+    from host.calibration.file import read_calibration, write_calibration
+
+    doc = read_calibration(cal)
+    section = doc["friction"]
+    h = (json.load(open(board))["actuator"]["block"]["coulomb_n"] if how == "true"
+         else section["fit"]["identified_n"])
+    section["friction_n"] = h
+    section["fixed"] = [int(round(h * 1000))] + list(section["fixed"][1:])
+    write_calibration(out_path, doc)
+    return out_path
 
 
 def override_params(pairs):
@@ -411,6 +430,9 @@ def main():
                     help="diagnostic: a firmware parameter's default replaced (repeatable)")
     ap.add_argument("--oversample", type=int, help="diagnostic: reads per step on every board")
     ap.add_argument("--noise", type=float, metavar="LSB", help="diagnostic: both pots' noise, LSB")
+    ap.add_argument("--friction", choices=("true", "identified"),
+                    help="diagnostic: the calibration's friction h replaced by the board's true one or the force step's "
+                         "identified one (before the trim)")
     ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
     ap.add_argument("--true-load", action="store_true",
                     help="diagnostic: score (and trim, refit) against the simulator's true load instead of the gauge's "
@@ -430,6 +452,7 @@ def main():
     GAUGE["at"] = a.at_gauge
     DIAG["oversample"] = a.oversample
     DIAG["noise"] = a.noise
+    DIAG["friction"] = a.friction
     if a.loop_hz:
         global SETTLE, HOLD
         DIAG["loop_hz"] = a.loop_hz
@@ -464,6 +487,7 @@ def main():
                 changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
                     (["loop %d Hz" % a.loop_hz] if a.loop_hz else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else []) + \
+                    (["friction h %s" % a.friction] if a.friction else []) + \
                     (["scored against the TRUE load"] if a.true_load else ["scored against the gauge's readings"])
                 print("tally (%s calibration%s%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
                       "max %.2f %%" % ("exact" if a.exact else "re-identified" if a.refit else "identified",
