@@ -79,15 +79,15 @@ def _main(argv):
     try:
         return args.func(args) or 0
     except UserError as exc:
-        print("error: %s" % exc, file=sys.stderr)
+        terminal.error(str(exc))
         return 2
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        terminal.interrupted()
         return 130
     except BrokenPipeError:
         raise  # main() ends a closed pipe quietly
     except OSError as exc:  # a serial port gone (serial.SerialException is one), a full disk, a directory for a file
-        print("error: %s" % os_error_line(exc), file=sys.stderr)
+        terminal.error(os_error_line(exc))
         return 2
 
 

@@ -53,6 +53,24 @@ def note(text):
         print(text, file=sys.stderr, flush=True)
 
 
+def output(text=""):
+    """A result: on stdout, what a script reads (never silenced)."""
+    end_progress()
+    print(text, flush=True)
+
+
+def error(text):
+    """`error: text` on stderr, the one line a failed command ends with."""
+    end_progress()
+    print("error: " + text, file=sys.stderr, flush=True)
+
+
+def interrupted():
+    """`interrupted` on stderr: how a command stopped by Ctrl-C ends."""
+    end_progress()
+    print("interrupted", file=sys.stderr, flush=True)
+
+
 def tell(text):
     """A line for the person at the bench (a guided run's instructions and each step's figures,
     which they judge before answering) on stderr: also under --quiet while someone answers."""

@@ -7,6 +7,7 @@ from host.commands._options import PORT_HELP, add_uf2_argument, order_or_auto, r
 from host.errors import UserError
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
+from host.terminal import error, output
 
 DEFAULT = Options()  # the defaults of the options below are Options' own: one place for each
 
@@ -193,10 +194,10 @@ def run(args):
         why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         _stop_log(log, why)
         phase = log.results["phase"]
-        print("error: the calibration stopped %s: %s; %s in %s and %s" % (
+        error("the calibration stopped %s: %s; %s in %s and %s" % (
             "during %s" % phase if phase else "before its first step", why,
-            "what it measured is" if log.measured else "the run log is", log.json_path, log.report_path), file=sys.stderr)
+            "what it measured is" if log.measured else "the run log is", log.json_path, log.report_path))
         return 1
     log.finish()
-    print("calibration %s: %s accepted (results: %s)" % (args.out, ", ".join(accepted) or "nothing", log.report_path))
+    output("calibration %s: %s accepted (results: %s)" % (args.out, ", ".join(accepted) or "nothing", log.report_path))
     return 0 if accepted else 1

@@ -5,7 +5,7 @@ from pathlib import Path
 
 from host.commands._options import parsed, ranged
 from host.errors import UserError
-from host.terminal import end_progress, live, note, warn
+from host.terminal import end_progress, live, note, output, warn
 from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
 
 
@@ -78,13 +78,13 @@ def run(args):
         paths = write_outputs(rows, args.out, stem, "%s: model comparison" % stem, len(sweep.x), noise)
     except OSError as exc:
         raise UserError("cannot write to %s: %s" % (args.out, exc)) from None
-    print("Objective (residual 2-norm) by order:\n")
-    print(pivot_markdown(rows, "norm2"))
+    output("Objective (residual 2-norm) by order:\n")
+    output(pivot_markdown(rows, "norm2"))
     if noise:
-        print("\nRMS / noise floor (%.4g):\n" % noise)
-        print(pivot_markdown(rows, "rms_over_noise", 3))
+        output("\nRMS / noise floor (%.4g):\n" % noise)
+        output(pivot_markdown(rows, "rms_over_noise", 3))
     failed = [r for r in rows if r["error"]]
     for r in failed:
         warn("%s order %d not fitted: %s" % (r["model"], r["order"], r["error"]))
-    print("\n%d fits in %.2f s; wrote %s" % (len(rows), wall, ", ".join(str(p) for p in paths)))
+    output("\n%d fits in %.2f s; wrote %s" % (len(rows), wall, ", ".join(str(p) for p in paths)))
     return 0

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 
 from host.errors import UserError
-from host.terminal import note
+from host.terminal import note, output
 
 
 def add_parser(subparsers):
@@ -90,7 +90,7 @@ def run(args):
     report = out_dir / "report.md"
     report.write_text(_report(source, sweep, floors, bcm, auto, reason, cal))
     say("[4/4] wrote %s, %s, %s" % (out_dir / "fit.png", out_dir / "fit_auto.png", report))
-    print("report: %s" % report)
+    output("report: %s" % report)
     return 0
 
 

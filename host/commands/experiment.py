@@ -1,11 +1,11 @@
 """`host experiment paper`: the paper's experiments on a board or `sim`, as a Markdown report."""
 
-import sys
 from pathlib import Path
 
 from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.commands.calibrate import DEFAULT, add_gauge_arguments, add_method_arguments, make_rig, method_options
 from host.errors import UserError
+from host.terminal import error, output
 
 
 def add_parser(subparsers):
@@ -66,8 +66,8 @@ def run(args):
         why = "interrupted (Ctrl-C)" if isinstance(exc, KeyboardInterrupt) else (str(exc).strip().splitlines() or [type(exc).__name__])[0]
         phase = results.get("phase", "start")
         path = write_stopped(out_dir, results, phase, why)
-        print("error: the experiment stopped during %s: %s; what it measured is in %s and %s"
-              % (phase, why, out_dir / "results.json", path), file=sys.stderr)
+        error("the experiment stopped during %s: %s; what it measured is in %s and %s"
+              % (phase, why, out_dir / "results.json", path))
         return 1
-    print("report: %s (%.0f s)" % (path, results["timings"]["total"]))
+    output("report: %s (%.0f s)" % (path, results["timings"]["total"]))
     return 0

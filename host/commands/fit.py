@@ -9,7 +9,7 @@ from host.errors import UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.fitting.pot_fit import RMS_REFUSE, fit_sweep, poor_fit, refusals
-from host.terminal import note, warn
+from host.terminal import note, output, warn
 
 
 def add_parser(subparsers):
@@ -144,11 +144,11 @@ def run(args):
         out["calibration"] = {"path": str(args.out), "section": args.pot, "crc32": crc, "adc_bits": bits,
                               "board": args.board, "pot_id": args.pot_id}
     if args.json:
-        print(json.dumps(out, indent=2, default=float))
+        output(json.dumps(out, indent=2, default=float))
         return 0
-    print("\n".join(report(result, sweep, floors, args.unit, reason)))
+    output("\n".join(report(result, sweep, floors, args.unit, reason)))
     if args.plot:
-        print("plot: %s" % args.plot)
+        output("plot: %s" % args.plot)
     if args.out:
-        print("calibration: %s section %s written (crc32 %08x)" % (args.out, args.pot, crc))
+        output("calibration: %s section %s written (crc32 %08x)" % (args.out, args.pot, crc))
     return 0

@@ -4,7 +4,7 @@ from host.commands._options import PORT_HELP, add_uf2_argument, add_load_argumen
 from host.errors import UserError
 from host.link.connect import open_port
 from host.link.flashing import flash
-from host.terminal import note
+from host.terminal import note, output
 
 
 def add_parser(subparsers):
@@ -42,7 +42,7 @@ def run(args):
         if args.board is None:
             raise UserError("--drive needs --board (a CircuitPython board file, e.g. pico_circuitpython)")
         written = install(args.drive, args.board, args.calibration, progress=progress, force=args.force)
-        print("installed on %s: %d files, verified; CircuitPython reloads code.py by itself (check with host status)"
+        output("installed on %s: %d files, verified; CircuitPython reloads code.py by itself (check with host status)"
               % (args.drive, len(written)))
         return 0
     with open_port(args.port, args.board, load=args.load, factory=False, uf2=args.uf2) as where:
@@ -54,6 +54,6 @@ def run(args):
                            force=args.force)
     if status.get("version") is None:
         raise UserError("firmware did not report a version")
-    print("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],
+    output("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],
           "%08x" % (status["calibration_crc"] & 0xFFFFFFFF) if status.get("calibration_crc") is not None else "none (%s)" % status.get("calibration_error")))
     return 0

@@ -5,7 +5,7 @@ from host.api import Board
 from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
 from host.link.live_view import watched
 from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path
-from host.terminal import end_progress, progress_line, warn
+from host.terminal import end_progress, output, progress_line, warn
 
 
 def add_parser(subparsers):
@@ -40,10 +40,10 @@ def run(args):
                                         lambda recording: recording.pump(args.seconds, progress), close_stops=True,
                                         keep=args.keep)
     end_progress()
-    print("%s: %s" % (args.out, summary.line()))
-    print("metadata (board, firmware, calibration CRC, units, mode and fault codes): %s" % metadata_path(args.out))
+    output("%s: %s" % (args.out, summary.line()))
+    output("metadata (board, firmware, calibration CRC, units, mode and fault codes): %s" % metadata_path(args.out))
     if png:
-        print("plot: %s" % png)
+        output("plot: %s" % png)
     if kept:  # --keep: the file is complete, the board let go; the window is the person's to close
         kept.wait()
     return 0

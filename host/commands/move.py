@@ -8,7 +8,7 @@ from host.api import Board
 from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
 from host.errors import UserError
 from host.link.live_view import watched
-from host.terminal import end_progress, progress_line
+from host.terminal import end_progress, output, progress_line
 
 
 def add_parser(subparsers):
@@ -53,13 +53,13 @@ def report(args, outcome, summary, png, text):
         if summary is not None:
             out["log"] = {"csv": args.log, "samples": summary.samples, "lost_frames": summary.lost_frames,
                           "board_dropped": summary.board_dropped, "png": None if png is None else str(png)}
-        print(json.dumps(out, indent=1))
+        output(json.dumps(out, indent=1))
         return
-    print(text)
+    output(text)
     if summary is not None:
-        print("%s: %s" % (args.log, summary.line()))
+        output("%s: %s" % (args.log, summary.line()))
     if png:
-        print("plot: %s" % png)
+        output("plot: %s" % png)
 
 
 def run(args):

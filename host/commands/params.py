@@ -6,6 +6,7 @@ from host.api import Board
 from host.commands._options import add_port_arguments
 from host.errors import UserError
 from host.link.board_params import check_value
+from host.terminal import output
 
 
 def add_parser(subparsers):
@@ -73,26 +74,26 @@ def run(args):
     if reads:
         values = {name: table[name].value for name in reads}
         if args.json:
-            print(json.dumps(values))
+            output(json.dumps(values))
         else:
             for name in reads:
-                print("%s %d %s" % (name, table[name].value, table[name].unit))
+                output("%s %d %s" % (name, table[name].value, table[name].unit))
         return 0
     if args.json:
-        print(json.dumps({"params": [p.as_dict() for p in table.values()], "saved": status.get("params_saved"),
+        output(json.dumps({"params": [p.as_dict() for p in table.values()], "saved": status.get("params_saved"),
                           "file_error": status.get("params_file_error")}, indent=1))
         return 0
     if not sets or args.save or args.defaults:
-        print("\n".join(describe(table, status.get("params_saved"))))
+        output("\n".join(describe(table, status.get("params_saved"))))
     else:
         for name in sets:
-            print("%s = %d %s" % (name, table[name].value, table[name].unit))
+            output("%s = %d %s" % (name, table[name].value, table[name].unit))
     if status.get("params_file_error"):
-        print("saved parameters not loaded at boot: %s" % status["params_file_error"])
+        output("saved parameters not loaded at boot: %s" % status["params_file_error"])
     if saved_result is not None:
         changed = saved_result.get("saved") or {}
-        print("saved on the board (%s, loaded at boot): %s" % (
+        output("saved on the board (%s, loaded at boot): %s" % (
             saved_result.get("file"), ", ".join("%s=%d" % kv for kv in sorted(changed.items())) or "all defaults"))
     elif sets:
-        print("not saved: these last until the board restarts (host params --save keeps them)")
+        output("not saved: these last until the board restarts (host params --save keeps them)")
     return 0

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from host.errors import UserError
 from host.link.telemetry_plot import plot
-from host.terminal import warn
+from host.terminal import output, warn
 
 
 def add_parser(subparsers):
@@ -24,5 +24,5 @@ def run(args):
         plot(src, out, warn=warn)
     except (ValueError, KeyError) as exc:
         raise UserError("cannot plot %s: %s" % (src, exc))
-    print(out)
+    output(out)
     return 0

@@ -6,6 +6,7 @@ import json
 from host.link import ports as port_list
 from host.link.port_advice import advice
 from host.link.ports import label
+from host.terminal import output
 
 
 def add_parser(subparsers):
@@ -34,10 +35,10 @@ def run(args):
         rows = [{"device": device, "vid": vid, "pid": pid, "description": desc, "board": label(vid, pid),
                  **({"probe": probe(device)} if args.probe and label(vid, pid) else {})}
                 for device, vid, pid, desc in ports]
-        print(json.dumps(rows, indent=1))
+        output(json.dumps(rows, indent=1))
         return 0
     if not ports:
-        print(advice("no ports", None))
+        output(advice("no ports", None))
         return 0
     for device, vid, pid, desc in ports:
         ids = "%04x:%04x" % (vid, pid) if isinstance(vid, int) and isinstance(pid, int) else "-"
@@ -45,5 +46,5 @@ def run(args):
         line = "%-20s %-10s %s (%s)" % (device, ids, what, desc)
         if args.probe and label(vid, pid):
             line += ": " + probe(device)
-        print(line)
+        output(line)
     return 0

@@ -2,6 +2,7 @@
 
 from host.commands._options import add_port_arguments
 from host.link.connect import Connection
+from host.terminal import output
 
 
 def add_parser(subparsers):
@@ -19,5 +20,5 @@ def cleared(board):
 def run(args):
     with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as connection:
         board = connection.client
-        print(cleared(board))
+        output(cleared(board))
     return 0

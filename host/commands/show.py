@@ -4,6 +4,7 @@ import json
 
 from host.calibration.file import read_calibration
 from host.calibration.report import compare, describe
+from host.terminal import output
 
 
 def add_parser(subparsers):
@@ -24,15 +25,15 @@ def run(args):
     a, crc = read_calibration(args.file, with_crc=True)  # UserError with one line when it is not a usable calibration
     if args.other is None:
         if args.json:
-            print(json.dumps(a, indent=1, sort_keys=True))
+            output(json.dumps(a, indent=1, sort_keys=True))
         else:
-            print("%s:" % args.file)
-            print("\n".join("  " + line for line in describe(a, crc)))
+            output("%s:" % args.file)
+            output("\n".join("  " + line for line in describe(a, crc)))
         return 0
     b = read_calibration(args.other)
     if args.json:
-        print(json.dumps({"first": a, "second": b}, indent=1, sort_keys=True))
+        output(json.dumps({"first": a, "second": b}, indent=1, sort_keys=True))
         return 0
-    print("%s | %s:" % (args.file, args.other))
-    print("\n".join("  " + line for line in compare(a, b)))
+    output("%s | %s:" % (args.file, args.other))
+    output("\n".join("  " + line for line in compare(a, b)))
     return 0

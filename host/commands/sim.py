@@ -6,7 +6,7 @@ import time
 
 from host.commands._options import add_load_argument, add_uf2_argument
 from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard, ready_calibration
-from host.terminal import note
+from host.terminal import note, output
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
 
@@ -87,7 +87,7 @@ def run(args):
         # host ports and --port auto find it while it runs; a guided calibration on its pty mounts its rig
         record = register(path, what, root=getattr(board, "root", None), board=getattr(board, "board_path", None))
         try:
-            print(path, flush=True)
+            output(path)
             note("%s running; Ctrl-C to stop" % what)  # stdout carries only the path, for a script to read
             while True:
                 time.sleep(0.5)

@@ -5,6 +5,7 @@ import json
 from firmware.protocol import STATUS_KEYS
 from host.api import Board
 from host.commands._options import add_port_arguments
+from host.terminal import output
 
 # how each key of firmware/protocol.py STATUS_KEYS is shown, in that order (a test checks every key
 # has its label); a field a newer firmware adds follows as it is
@@ -86,7 +87,7 @@ def run(args):
         crc = status.get("calibration_crc")
         if crc is not None:  # hex, as host flash, host show and the log's metadata write it
             status = dict(status, calibration_crc="%08x" % (crc & 0xFFFFFFFF))
-        print(json.dumps(status, indent=1, sort_keys=True))
+        output(json.dumps(status, indent=1, sort_keys=True))
     else:
-        print("\n".join(describe(status)))
+        output("\n".join(describe(status)))
     return 0

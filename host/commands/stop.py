@@ -3,6 +3,7 @@
 from host.commands._options import add_port_arguments
 from host.commands.reset import cleared
 from host.link.connect import Connection
+from host.terminal import output
 
 
 def add_parser(subparsers):
@@ -21,8 +22,8 @@ def run(args):
         board.call("stop")
         faults = board.call("status").get("faults") or []
         if faults == ["host_timeout"]:
-            print(cleared(board))
+            output(cleared(board))
         elif faults:
-            print("latched: %s (host reset clears them once the cause is fixed)" % ", ".join(faults))
-        print("stopped")
+            output("latched: %s (host reset clears them once the cause is fixed)" % ", ".join(faults))
+        output("stopped")
     return 0

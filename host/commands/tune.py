@@ -8,7 +8,7 @@ from host.commands._options import add_port_arguments, nonzero, parsed, ranged
 from host.errors import UserError
 from host.guided.tuning import LOOPS, tune
 from host.link.connect import Connection
-from host.terminal import end_progress, progress_line
+from host.terminal import end_progress, output, progress_line
 
 DEFAULTS = {  # mode -> (start, step, band) in the shown unit (mm or N)
     "position": (25.0, 5.0, 0.05),
@@ -120,20 +120,20 @@ def run(args):
     png = plot(trials, chosen, args.mode, png)
     if args.json:
         rows = [dict(tr.response.as_dict(), gains=tr.gains, held=tr.held, verdict=tr.verdict()) for tr in trials]
-        print(json.dumps({"mode": args.mode, "unit": field, "trials": rows,
+        output(json.dumps({"mode": args.mode, "unit": field, "trials": rows,
                           "recommended": None if chosen is None else trials[chosen].gains, "png": png}, indent=1))
     else:
-        print("%s loop, step %g -> %g %s, band +-%g %s:" % (args.mode, start, start + step, unit, band, unit))
+        output("%s loop, step %g -> %g %s, band +-%g %s:" % (args.mode, start, start + step, unit, band, unit))
         for tr in trials:
-            print(_line(tr, unit, scale))
+            output(_line(tr, unit, scale))
         if chosen is None:
-            print("no gain set settled without oscillating or overshooting more than 20 %: try smaller gains")
+            output("no gain set settled without oscillating or overshooting more than 20 %: try smaller gains")
         elif len(trials) > 1:
             kept = "kept on the board" + (" and saved" if saved is not None else "") if (args.apply or args.save) else \
                 "not applied (--apply or --save keeps it)"
-            print("recommended: %s (%s)" % (trials[chosen].label, kept))
+            output("recommended: %s (%s)" % (trials[chosen].label, kept))
         if png:
-            print("plot: %s" % png)
+            output("plot: %s" % png)
     if chosen is None:
         return 1
     return 0

@@ -83,3 +83,19 @@ def test_warn_ends_an_open_progress_line(monkeypatch):
     finally:
         terminal.set_quiet(False)
     assert tty.getvalue() == "warning: something to know\n"
+
+
+def test_commands_write_only_through_the_terminal_module():
+    """One output channel: a command's results go through host.terminal.output, its progress,
+    warnings and errors through note/progress_line/warn/error, never a bare print (which would
+    ignore --quiet or end up on the wrong stream)."""
+    import ast
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2] / "host"
+    offenders = []
+    for path in sorted((root / "commands").glob("*.py")) + [root / "cli.py"]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "print":
+                offenders.append("%s:%d" % (path.relative_to(root.parent), node.lineno))
+    assert not offenders, offenders
