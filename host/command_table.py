@@ -77,8 +77,8 @@ def table(parser=None):
     lines.append("")
     lines.append("Board commands (%s) also take `--port PORT` (default `auto`: the one board `host ports` finds; "
                  "`sim` or `sim:rp2040` for a board started for the command, with `--board`, `--calibration`, "
-                 "`--uncalibrated`, `--load` and `--uf2`). Every command takes `-q` (no progress lines) and "
-                 "`--help`." % ", ".join(board))
+                 "`--uncalibrated`, `--load` and `--uf2`). Every command takes `-q` (no progress lines; results "
+                 "stay on stdout, warnings and errors on stderr) and `--help`." % ", ".join(board))
     return "\n".join(lines)
 
 
