@@ -19,7 +19,7 @@ from pathlib import Path
 
 from firmware.protocol import FAULT_NAMES, FIELD_UNITS, FIELDS, MODES
 from host.link import stream
-from host.link.board_time import NO_DATA_S
+from host.link.board_time import NO_DATA_S, BoardTime
 
 # What each column is, for people (a new telemetry field must say it here: tests check); its unit
 # is the interface table's (firmware/protocol.py FIELD_UNITS)
@@ -46,7 +46,7 @@ CALIBRATED_FIELDS = ("d1_um", "d2_um", "defl_um", "force_mN")
 @dataclass
 class LogSummary:
     samples: int = 0
-    seconds: float = 0.0
+    seconds: float = 0.0  # of the board's time the records span
     lost_frames: int = 0
     board_dropped: int = 0
     crc_errors: int = 0
@@ -133,7 +133,7 @@ class Recording:
         self._writer = csv.writer(self._file)
         self._writer.writerow(FIELDS)
         self.client.start_stream(self.rate)
-        self._start = time.monotonic()
+        self._clock = BoardTime()  # the summary's seconds: the board's, as `host log --seconds` counts
         return self
 
     def frames(self, timeout=0.1):
@@ -160,13 +160,13 @@ class Recording:
         except OSError as exc:  # a full disk shows here, at a buffer's flush: say which file
             raise _naming(exc, self.path) from None
         self.summary.samples += len(rows)
+        self.summary.seconds = self._clock.add(rows)
         self.summary.board_dropped = frame.dropped()
         if self.on_rows is not None:
             self.on_rows(rows)
 
     def _update(self):
         decoder = self.client.decoder
-        self.summary.seconds = time.monotonic() - self._start
         self.summary.lost_frames = decoder.lost_frames - self._counts0[0]
         self.summary.crc_errors = decoder.crc_errors - self._counts0[1]
         self.summary.skipped_bytes = decoder.skipped_bytes - self._counts0[2]
