@@ -49,8 +49,7 @@ class BoardError(UserError):
 
 
 class BoardClient:
-    def __init__(self, port, timeout=0.5, retries=None, check=True, require_calibration=False, start_firmware=True,
-                 patience=PATIENCE_S):
+    def __init__(self, port, timeout=0.5, retries=None, check=True, require_calibration=False, patience=PATIENCE_S):
         self.port = port
         self.timeout = timeout
         self.retries = retries  # None: resend every `timeout` until `patience` seconds have passed
@@ -65,7 +64,7 @@ class BoardClient:
         self.serial = self._open(port)
         self.status_info = None
         if check:
-            self.handshake(require_calibration=require_calibration, start_firmware=start_firmware)
+            self.handshake(require_calibration=require_calibration)
 
     @staticmethod
     def _open(port):
@@ -88,12 +87,10 @@ class BoardClient:
         self.close()
 
     # -- handshake ---------------------------------------------------------------------
-    def handshake(self, require_calibration=False, start_firmware=True):
+    def handshake(self, require_calibration=False):
         try:
             status = self.request("status", retries=1)
         except TimeoutError:
-            if not start_firmware:
-                raise UserError("no lsea-kit firmware answers on %s (flash it: host flash --port %s)" % (self.port, self.port))
             # Maybe it sits at the REPL (after mpremote): soft-reset so main.py starts it.
             self.soft_reset()
             try:
