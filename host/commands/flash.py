@@ -2,8 +2,7 @@
 
 from host.commands._options import PORT_HELP, add_uf2_argument, add_load_argument
 from host.errors import UserError
-from host.link.connect import open_port
-from host.link.flashing import flash
+from host.link.connect import Connection
 from host.terminal import note, output
 
 
@@ -45,13 +44,14 @@ def run(args):
         output("installed on %s: %d files, verified; CircuitPython reloads code.py by itself (check with host status)"
               % (args.drive, len(written)))
         return 0
-    with open_port(args.port, args.board, load=args.load, factory=False, uf2=args.uf2) as where:
-        if where.virtual is not None:  # an empty flash: nothing to ask, the board file is the virtual board's
-            status = flash(where.path, str(where.board_path), args.calibration, progress=progress, ask_board=False,
-                           force=args.force)
+    # check=False: a board may have no firmware yet (a virtual one starts with an empty flash)
+    with Connection(args.port, args.board, load=args.load, factory=False, uf2=args.uf2, ready=False,
+                    check=False) as connection:
+        if connection.virtual is not None:  # nothing to ask: the board file is the virtual board's
+            status = connection.reflash(None, args.calibration, progress=progress, ask_board=False, force=args.force)
         else:
-            status = flash(where.path, args.board, args.calibration, progress=progress, replace_board=args.replace_board,
-                           force=args.force)
+            status = connection.reflash(args.board, args.calibration, progress=progress,
+                                        replace_board=args.replace_board, force=args.force)
     if status.get("version") is None:
         raise UserError("firmware did not report a version")
     output("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],

@@ -201,11 +201,12 @@ class Connection:
         self.client = BoardClient(self.where.path, **self.options)
         return self.client
 
-    def reflash(self, board_path=None, calibration=None, progress=None, ask_board=None):
+    def reflash(self, board_path=None, calibration=None, progress=None, ask_board=None, **flash_options):
         """`host flash` over this connection: the client closed, the firmware, the board file
         (default: that of a board started for this connection) and `calibration` installed, a new
         client. `ask_board` (default: on a real board) checks the board file against what the
-        board says it is. Returns the firmware's status after."""
+        board says it is; `flash_options`: flashing.flash's (replace_board, force). Returns the
+        firmware's status after."""
         from host.link.flashing import flash
 
         if board_path is None and self.board_path is not None:
@@ -216,12 +217,12 @@ class Connection:
             self.client.close()
             self.client = None
         try:
-            flash(self.path, None if board_path is None else str(board_path),
-                  None if calibration is None else str(calibration),
-                  progress=progress or (lambda text: None), ask_board=ask_board)
+            status = flash(self.path, None if board_path is None else str(board_path),
+                           None if calibration is None else str(calibration),
+                           progress=progress or (lambda text: None), ask_board=ask_board, **flash_options)
         finally:
             self.reconnect()
-        return self.client.status_info
+        return status
 
     def close(self):
         try:
