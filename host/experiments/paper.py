@@ -203,6 +203,7 @@ class PaperRun:
     def held_out_df(self, results):
         """Df on a validation sweep the fit never saw, with the calibration on the board."""
         self.say("== held out: what the calibration never saw (targets drawn with seed %d) ==" % self.seed)
+        self.held_out.store(results)  # the seed first: a run that stops in the sweep can still be repeated
         duty = max(100, int(self.opts.duty * held_out.SWEEP_DUTY_FACTOR))
         df = self.held_out.df = held_out.df_validation(self.session, self.rig, duty, self.say)
         self.say("  Df held out: %.3f mm peak of 1 mm bin means, the two directions averaged (%.3f mm pooled; the "
@@ -240,6 +241,7 @@ class PaperRun:
         drawn = held_out.draw_positions(self.rng, results["stroke_in_force_mm"], paper_targets=targets)
         say("  held-out positions (drawn): %s mm" % ", ".join("%g" % t for t in drawn))
         self.held_out.positions = held_out.positions(session, rig, opts.ref_scale, zero, drawn)
+        self.held_out.store(results)  # kept should the blocking runs below stop the run
         for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
             blocking.append(("with Df", force_runs.blocking_run(session, rig, target, middle)))
         displacement.plot(out_dir / "fig7.png", before, after)

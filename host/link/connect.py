@@ -220,8 +220,13 @@ class Connection:
             status = flash(self.path, None if board_path is None else str(board_path),
                            None if calibration is None else str(calibration),
                            progress=progress or (lambda text: None), ask_board=ask_board, **flash_options)
-        finally:
-            self.reconnect()
+        except BaseException:
+            try:
+                self.reconnect()  # to what the board runs now, if it answers
+            except Exception:
+                pass  # the flash's own error is the one to report (a vanished port would hide it)
+            raise
+        self.reconnect()
         return status
 
     def close(self):

@@ -26,11 +26,11 @@ def records(link, seconds=None, rate=1000, patience=NO_DATA_S, silence_ends=Fals
     given, runs once the stream runs (a step sent then is in the records from its first
     moment). The stream is stopped however the loop ends."""
     link.start_stream(rate)
-    if started is not None:
-        started()
     clock = BoardTime()
     heard = time.monotonic()
     try:
+        if started is not None:
+            started()
         while seconds is None or clock.seconds < seconds:
             link.heartbeat_if_due()
             frames = link.frames(timeout=0.05)

@@ -215,3 +215,22 @@ def test_a_runs_samples_are_saved_as_named_columns_in_the_order_taken(tmp_path):
     assert back.dtype.names == ("d_mm", "loading", "duty")
     assert np.allclose(back["d_mm"], cols["d_mm"]) and list(back["loading"]) == [1, 1, 0]
     assert list(back["duty"]) == [-625, 1250, 625]
+
+
+def test_a_run_that_stops_in_the_held_out_sweep_keeps_its_seed(monkeypatch, tmp_path):
+    """The held-out seed is in results (and so in the stopped run's results.json) before the
+    validation sweep starts: `--held-out-seed` can repeat a run that stopped there."""
+    from types import SimpleNamespace
+
+    import host.experiments.paper as paper
+
+    def board_gone(*args, **kwargs):
+        raise TimeoutError("no telemetry")
+
+    monkeypatch.setattr(paper.held_out, "df_validation", board_gone)
+    run = paper.PaperRun(None, None, None, SimpleNamespace(out=tmp_path / "c.json", duty=1500), tmp_path,
+                         lambda text: None, held_out_seed=77)
+    results = {}
+    with pytest.raises(TimeoutError):
+        run.held_out_df(results)
+    assert results["held_out"] == {"seed": 77}
