@@ -34,6 +34,7 @@ Diagnostics (each changes what is run, and says so in the tally line):
     --noise LSB          both pots' noise set to LSB (what the loop does with quieter pots)
     --friction true|identified   the calibration's friction h replaced by the board's true one or
                          the force step's identified one (what the trim changes)
+    --filter-shift N     the estimate's average over 2**N steps instead of measurement.filter_shift's
     --loop-hz HZ         every board's loop rate (CircuitPython's 250 Hz); settle and hold keep
                          their seconds
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
@@ -433,6 +434,8 @@ def main():
     ap.add_argument("--friction", choices=("true", "identified"),
                     help="diagnostic: the calibration's friction h replaced by the board's true one or the force step's "
                          "identified one (before the trim)")
+    ap.add_argument("--filter-shift", type=int, metavar="N",
+                    help="diagnostic: the estimate's average over 2**N steps (measurement.filter_shift; 6 at 1 kHz)")
     ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
     ap.add_argument("--true-load", action="store_true",
                     help="diagnostic: score (and trim, refit) against the simulator's true load instead of the gauge's "
@@ -458,6 +461,10 @@ def main():
         DIAG["loop_hz"] = a.loop_hz
         SETTLE, HOLD = SETTLE * a.loop_hz // 1000, HOLD * a.loop_hz // 1000
     override_params(a.param)
+    if a.filter_shift is not None:  # before any App is made: Measurement asks it at construction
+        import firmware.measurement as measurement
+
+        measurement.filter_shift = lambda loop_hz: a.filter_shift
     if not os.path.isdir(a.runs):
         sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
     os.chdir(ROOT)
@@ -488,6 +495,7 @@ def main():
                     (["loop %d Hz" % a.loop_hz] if a.loop_hz else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else []) + \
                     (["friction h %s" % a.friction] if a.friction else []) + \
+                    (["estimate over 2**%d steps" % a.filter_shift] if a.filter_shift is not None else []) + \
                     (["scored against the TRUE load"] if a.true_load else ["scored against the gauge's readings"])
                 print("tally (%s calibration%s%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
                       "max %.2f %%" % ("exact" if a.exact else "re-identified" if a.refit else "identified",

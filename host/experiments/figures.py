@@ -22,6 +22,13 @@ class Figure:
         results[self.KEY] = self.payload()
 
 
+class OneField(Figure):
+    """A figure stored as its one field's value (a list of rows, the step's own stats dict)."""
+
+    def payload(self):
+        return getattr(self, fields(self)[0].name)
+
+
 @dataclass
 class Calibration(Figure):
     """The guided calibration the experiments run on: each step's lines and plots, the pot models it
@@ -42,25 +49,19 @@ class Calibration(Figure):
 
 
 @dataclass
-class Fig3a(Figure):
+class Fig3a(OneField):
     """The fit objective against the model order on pot 2's sweep (host/experiments/model_compare.py)."""
 
     KEY = "fig3a"
     rows: list
 
-    def payload(self):
-        return self.rows
-
 
 @dataclass
-class Fig5(Figure):
+class Fig5(OneField):
     """Df before and after the assembly calibration, from the assembly step's own sweep (in-sample)."""
 
     KEY = "fig5"
     stats: dict
-
-    def payload(self):
-        return self.stats
 
 
 @dataclass
@@ -75,14 +76,11 @@ class Fig7(Figure):
 
 
 @dataclass
-class Fig8(Figure):
+class Fig8(OneField):
     """No-load force runs: (name, {final, target_n}) without the Df correction and with it."""
 
     KEY = "fig8"
     runs: list
-
-    def payload(self):
-        return self.runs
 
 
 @dataclass
@@ -95,14 +93,11 @@ class DeadZone(Figure):
 
 
 @dataclass
-class Table1(Figure):
+class Table1(OneField):
     """The paper's force steps (5/10/15 N loading, then unloading) on each gauge side."""
 
     KEY = "table1"
     rows: list
-
-    def payload(self):
-        return self.rows
 
 
 @dataclass
