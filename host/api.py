@@ -19,17 +19,14 @@ import contextlib
 from collections import namedtuple
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from firmware import protocol as P
 from host.guided.acquire import settle
 from host.link.board_client import BoardError
 from host.link import stream
-from host.link.board_time import BoardTime
 from host.link.connect import Connection
 from host.link.board_params import read_table, set_values
 from host.errors import UserError
-from host.link.telemetry_log import Recording
+from host.link.telemetry_log import CsvLog
 
 Record = namedtuple("Record", P.FIELDS)
 Record.__doc__ = "One telemetry record: the firmware's fields (firmware/telemetry.py), in their units (host.link.telemetry_log.UNITS)."
@@ -107,7 +104,6 @@ class Board:
         self._connection = Connection(port, board, calibration, _load(load), uf2=uf2, ready=not uncalibrated,
                                       require_calibration=require_calibration).open()
         self.client = self._connection.client
-        self._link = self.client  # a Recording while log() is active: motions stream through it
 
     @property
     def port(self):
@@ -168,7 +164,7 @@ class Board:
     def _settle(self, mode, target, field_name, tolerance, timeout_s, hold, progress):
         last = {}
         try:
-            ok, value, seconds = settle(self._link, mode, target, field_name, tolerance, timeout_s, SETTLE_HOLD_S,
+            ok, value, seconds = settle(self._connection.link, mode, target, field_name, tolerance, timeout_s, SETTLE_HOLD_S,
                                         progress=progress, last=last)
         finally:
             if not hold:
@@ -232,31 +228,27 @@ class Board:
 
     def stream_arrays(self, seconds=None, rate=1000):
         """As stream(), a numpy int32 array (records x P.FIELDS) per frame as it arrives."""
-        with stream.closing(stream.records(self._link, seconds, rate)) as arrays:
+        with stream.closing(stream.records(self._connection.link, seconds, rate)) as arrays:
             for rows, _board_s in arrays:
                 yield rows
 
     def record(self, seconds, rate=1000):
         """`seconds` of the board's time at `rate` Hz as {field: numpy int64 array} (the shape
         host.link.telemetry_log.load gives a CSV), plus "t_s": each record's board time in seconds."""
-        chunks = list(self.stream_arrays(seconds, rate))
-        rows = np.concatenate(chunks) if chunks else np.zeros((0, P.RECORD_WORDS), dtype=np.int32)
-        run = {name: rows[:, i].astype(np.int64) for i, name in enumerate(P.FIELDS)}
-        run["t_s"] = BoardTime().stamps(rows)  # from 0 at the first record
-        return run
+        arrays = stream.Arrays()
+        self._connection.stream(seconds, rate, [arrays])
+        return arrays.run()
 
     @contextlib.contextmanager
     def log(self, path, rate=1000, on_rows=None, stop=None):
         """Within the block, telemetry at `rate` Hz goes to CSV `path` (and RUN.meta.json beside
-        it) while move()/force() run over the same connection; `on_rows(records)` sees each frame's
-        records as they arrive. Yields the host.link.telemetry_log.Recording (its .summary counts
-        samples and lost frames). `stop`: see Recording."""
-        with Recording(self.client, path, rate, on_rows, stop) as recording:
-            self._link = recording
-            try:
-                yield recording
-            finally:
-                self._link = self.client
+        it) while move()/force()/record() run over the same connection; `on_rows(records)` sees
+        each frame's records as they arrive. Yields the host.link.stream.Tee (its .summary counts
+        samples and lost frames; .pump() only records). `stop`: see Tee."""
+        with CsvLog(path, self.client.call("status"), rate) as csv_log:
+            sinks = [csv_log] if on_rows is None else [csv_log, on_rows]
+            with self._connection.tee(rate, sinks, stop) as tee:
+                yield tee
 
     # -- flashing ------------------------------------------------------------------------
     def flash(self, calibration=None, board=None):
@@ -265,7 +257,7 @@ class Board:
         try:
             return self._connection.reflash(board, calibration)
         finally:
-            self.client = self._link = self._connection.client
+            self.client = self._connection.client
 
 
 @dataclass

@@ -9,14 +9,17 @@ real Pico, by `host flash` over its USB serial. Either one's serial path, rig an
 valid while clients come and go, so a guided calibration can close its client, flash the board
 and open a new one.
 `Connection(port, ...)` is open_port with a BoardClient on it (the handshake done), and the one
-way a command or the guided calibration talks to a board, re-flashes it and reconnects (with
-check=False, the client's own handshake() asks what runs there: host ports --probe, host flash).
+way a command or the guided calibration talks to a board, streams its telemetry to sinks
+(stream(), tee()), re-flashes it and reconnects (with check=False, the client's own handshake()
+asks what runs there: host ports --probe, host flash).
 """
 
+import contextlib
 from pathlib import Path
 
 from host.errors import UserError
 from host.link.board_client import BoardClient
+from host.link.stream import Tee, records
 
 SIM = "sim"
 CHIPS = ("rp2040",)  # --port sim:CHIP: an emulated chip running the board's own MicroPython
@@ -168,6 +171,7 @@ class Connection:
         self.where = open_port(port, board, calibration, load, factory=factory, uf2=uf2, progress=progress, ready=ready)
         self.options = client_options
         self.client = None
+        self._tee = None
 
     @property
     def virtual(self):
@@ -184,6 +188,36 @@ class Connection:
         """The board file a board started for this connection runs, else None."""
         return self.where.board_path
 
+    @property
+    def link(self):
+        """What a reader streams through: the client, or while tee() is on, the Tee in its place."""
+        return self._tee if self._tee is not None else self.client
+
+    @contextlib.contextmanager
+    def tee(self, rate=1000, sinks=(), stop=None):
+        """Within the block the board streams at `rate` Hz and every frame read through `link`
+        (a motion's settle, stream(), the Tee's own pump) goes to each of `sinks` first: a motion
+        and its log share this connection. Yields the host.link.stream.Tee (its .summary counts
+        what went to the sinks; .pump() only streams). `stop`: see Tee."""
+        if self._tee is not None:
+            raise RuntimeError("a tee is on already: give it every sink")
+        with Tee(self.client, rate, sinks, stop) as tee:
+            self._tee = tee
+            try:
+                yield tee
+            finally:
+                self._tee = None
+
+    def stream(self, seconds, rate=1000, sinks=()):
+        """Telemetry for `seconds` of the board's time at `rate` Hz (through a tee, if one is on),
+        each frame's records handed to each of `sinks` (host.link.stream: CsvLog, Arrays, any
+        callable); returns the board seconds streamed (the last frame may reach past `seconds`: the
+        sinks get its records up to `seconds`)."""
+        streamed = 0.0
+        for _rows, board_s in records(self.link, seconds, rate, sinks=sinks):
+            streamed = board_s
+        return streamed
+
     def open(self):
         self.where.open()
         try:
@@ -195,6 +229,8 @@ class Connection:
 
     def reconnect(self):
         """A new client on the same port (after the board restarted); returns it."""
+        if self._tee is not None:
+            raise RuntimeError("reconnecting under a tee would leave it on the old client")
         if self.client is not None:
             self.client.close()
         self.client = None

@@ -342,11 +342,11 @@ def to_repl(port):
     """Whatever runs on the board (our firmware, another code.py) stopped, the board at its REPL
     for mpremote: after Ctrl-C CircuitPython waits for a key, which mpremote does not send. A
     port that cannot be opened here is left for mpremote to report."""
-    from host.link.board_client import BoardClient
+    from host.link.connect import Connection
 
     try:
-        with BoardClient(port, check=False) as client:
-            client.to_repl()
+        with Connection(port, check=False) as connection:
+            connection.client.to_repl()
     except (UserError, OSError):
         pass
 
@@ -427,11 +427,11 @@ def flash(port, board_name="sim", calibration=None, progress=None, replace_board
             if int(got.get(name, -1)) != crc:
                 raise UserError("verification failed: %s on the board has CRC %s, expected %d" % (name, got.get(name), crc))
     progress("resetting and checking the firmware answers")
-    from host.link.board_client import BoardClient
+    from host.link.connect import Connection
 
-    with BoardClient(port, check=False) as client:
-        client.soft_reset()
-        status = client.handshake()
+    with Connection(port, check=False) as connection:
+        connection.client.soft_reset()
+        status = connection.client.handshake()
     if calibration is not None and status.get("calibration_crc") is None:
         raise UserError("flashed, but the firmware rejects the calibration: %s" % status.get("calibration_error"))
     return status

@@ -2,8 +2,8 @@
 of the board's time while the board streams at 1 kHz and the CSV is written.
 
 Two processes, so drawing never holds up the serial port: this one does all of the board's I/O
-(the motion or the plain recording, through a host.link.telemetry_log.Recording that writes every
-frame to the CSV and puts its records on a queue), and a drawing process of its own (a GUI
+(the motion or the plain recording, through the connection's host.link.stream.Tee, whose sinks
+write every frame to the CSV and put its records on a queue), and a drawing process of its own (a GUI
 toolkit wants its own main thread, and a redraw holds the interpreter lock long enough to starve
 the port's reader, and a virtual board's relay, of a thread beside it) takes them off the queue
 and redraws. Frames are counted by sequence number as they are decoded, so a slow redraw shows

@@ -1,10 +1,10 @@
 """Record board telemetry to CSV: one row per record, columns = firmware.protocol.FIELDS.
 
-`Recording(board, path, rate)` streams from a BoardClient while a motion runs through it (one
-connection for both), or alone with `pump()`; `record(board, path, seconds, rate)` does the
-latter. Rows are written as they arrive (so a Ctrl-C or a lost port still leaves a complete file
-up to the last frame), heartbeats keep the host timeout away, and a `LogSummary` says what came
-(samples, rate, lost frames counted by sequence number, board drops).
+`CsvLog(path, status, rate)` is the sink (host/link/stream.py) that writes them: host.api.Board.log
+puts it on the connection's Tee, so that a motion and its log share one connection, and the Tee's
+LogSummary (host.link.stream) says what came (samples, rate, lost frames counted by sequence number, board drops).
+Rows are written as they arrive, so a Ctrl-C or a lost port still leaves a complete file up to
+the last frame.
 Beside the CSV (a plain table any tool reads) it writes RUN.meta.json: the board, firmware and
 protocol version, calibration CRC, loop period, stream rate, the date, each column's unit, and
 the code tables of the `mode` and `faults` columns.
@@ -13,13 +13,9 @@ the code tables of the `mode` and `faults` columns.
 import csv
 import datetime
 import json
-import time
-from dataclasses import dataclass
 from pathlib import Path
 
 from firmware.protocol import FAULT_NAMES, FIELD_UNITS, FIELDS, MODES
-from host.link import stream
-from host.link.board_time import NO_DATA_S, BoardTime
 
 # What each column is, for people (a new telemetry field must say it here: tests check); its unit
 # is the interface table's (firmware/protocol.py FIELD_UNITS)
@@ -41,26 +37,6 @@ UNITS = {name: "%s: %s" % (unit, MEANING[name]) for name, unit in zip(FIELDS, FI
 
 # What the firmware computes from the calibration; all 0 in records from a board without one.
 CALIBRATED_FIELDS = ("d1_um", "d2_um", "defl_um", "force_mN")
-
-
-@dataclass
-class LogSummary:
-    samples: int = 0
-    seconds: float = 0.0  # of the board's time the records span
-    lost_frames: int = 0
-    board_dropped: int = 0
-    crc_errors: int = 0
-    skipped_bytes: int = 0
-    interrupted: bool = False
-
-    @property
-    def rate(self):
-        return self.samples / self.seconds if self.seconds > 0 else 0.0
-
-    def line(self):
-        return "%d samples in %.2f s (%.1f/s), lost frames %d, board ring drops %d, CRC errors %d%s" % (
-            self.samples, self.seconds, self.rate, self.lost_frames, self.board_dropped, self.crc_errors,
-            " (interrupted)" if self.interrupted else "")
 
 
 def metadata_path(path):
@@ -89,127 +65,37 @@ def metadata(status, rate):
     }
 
 
-class Recording:
-    """Telemetry streamed at `rate` Hz into CSV `path` while other code drives the board through
-    this object: one connection serves a motion and its log.
+class CsvLog:
+    """A telemetry sink (host.link.stream): every record it is given, one CSV row, written as it
+    arrives (a Ctrl-C or a lost port still leaves a complete file up to the last frame), with
+    RUN.meta.json beside it from the board's `status` at the start and the stream `rate`. Use as a
+    context manager; a write that fails (a full disk) names the file."""
 
-    It stands in for the BoardClient where a motion streams (host.guided.acquire.settle,
-    api.Board.stream_arrays): call, request, heartbeat_if_due, start_stream, frames and
-    stop_stream, nothing else. The stream stays on at the recording's rate whatever a caller's
-    start_stream asks, and every frame handed out by frames() is first written to the CSV and
-    given to `on_rows(records)`.
-    `stop` (a threading.Event) set from another thread makes the next frames() raise
-    KeyboardInterrupt, so whatever drives the board ends through its usual clean-up (motor off).
-    Rows are written as they arrive, so a Ctrl-C or a lost port still leaves a complete file."""
-
-    def __init__(self, client, path, rate=1000, on_rows=None, stop=None):
-        self.client = client
+    def __init__(self, path, status, rate):
         self.path = path
-        self.rate = rate
-        self.on_rows = on_rows
-        self.stop = stop
-        self.summary = LogSummary()
-        self._file = self._writer = None
-
-    @property
-    def port(self):
-        return self.client.port
-
-    def call(self, name, *args, **kw):
-        return self.client.call(name, *args, **kw)
-
-    def request(self, name, *args, **kw):
-        return self.client.request(name, *args, **kw)
-
-    def heartbeat_if_due(self):
-        return self.client.heartbeat_if_due()
-
-    def __enter__(self):
-        meta = metadata(self.client.call("status"), self.rate)
-        metadata_path(self.path).write_text(json.dumps(meta, indent=1) + "\n")
-        decoder = self.client.decoder
-        self._counts0 = decoder.lost_frames, decoder.crc_errors, decoder.skipped_bytes
-        self._file = open(self.path, "w", newline="")
+        metadata_path(path).write_text(json.dumps(metadata(status, rate), indent=1) + "\n")
+        self._file = open(path, "w", newline="")
         self._writer = csv.writer(self._file)
         self._writer.writerow(FIELDS)
-        self.client.start_stream(self.rate)
-        self._clock = BoardTime()  # the summary's seconds: the board's, as `host log --seconds` counts
-        return self
 
-    def frames(self, timeout=0.1):
-        if self.stop is not None and self.stop.is_set():
-            raise KeyboardInterrupt
-        frames = self.client.frames(timeout=timeout)
-        for frame in frames:
-            self._write(frame)
-        return frames
-
-    def start_stream(self, hz):
-        """The stream is on already, at the recording's rate: what came so far goes to the file,
-        and the caller sees only frames from now on."""
-        self.frames(timeout=0)
-        return {"hz": self.rate}
-
-    def stop_stream(self):
-        return {"hz": self.rate}  # stays on until the recording ends
-
-    def _write(self, frame):
-        rows = frame.records()
+    def __call__(self, rows):
         try:
             self._writer.writerows(rows.tolist())
         except OSError as exc:  # a full disk shows here, at a buffer's flush: say which file
             raise _naming(exc, self.path) from None
-        self.summary.samples += len(rows)
-        self.summary.seconds = self._clock.add(rows)
-        self.summary.board_dropped = frame.dropped()
-        if self.on_rows is not None:
-            self.on_rows(rows)
 
-    def _update(self):
-        decoder = self.client.decoder
-        self.summary.lost_frames = decoder.lost_frames - self._counts0[0]
-        self.summary.crc_errors = decoder.crc_errors - self._counts0[1]
-        self.summary.skipped_bytes = decoder.skipped_bytes - self._counts0[2]
-
-    def pump(self, seconds=None, progress=None, progress_every=1.0):
-        """Only record, for `seconds` of the board's time (the records' t_us, as every wait of
-        the host's counts: host/link/board_time.py; None: until Ctrl-C, which ends it cleanly);
-        heartbeats keep the firmware's host timeout away. LinkError when no record comes for
-        NO_DATA_S of wall time."""
-        next_report = time.monotonic() + progress_every
+    def close(self):
         try:
-            for _rows, _board_s in stream.records(self, seconds, self.rate, patience=NO_DATA_S):
-                now = time.monotonic()
-                if progress and now >= next_report:
-                    next_report += progress_every
-                    self._update()
-                    progress(self.summary)
-        except KeyboardInterrupt:
-            self.summary.interrupted = True
-        return self.summary
+            self._file.close()
+        except OSError as exc:
+            raise _naming(exc, self.path) from None
 
-    def __exit__(self, exc_type, *exc):
-        if exc_type is KeyboardInterrupt:
-            self.summary.interrupted = True
-        try:
-            self.client.call("stream", "off")
-            while True:  # the records sent before the board heard it
-                frames = self.client.frames(timeout=0.05)
-                if not frames:
-                    break
-                for frame in frames:
-                    self._write(frame)
-        except Exception:
-            pass  # the file is what matters; a vanished port must not lose it
-        finally:
-            for frame in self.client.telemetry:
-                self._write(frame)
-            self.client.telemetry.clear()
-            self._update()
-            try:
-                self._file.close()
-            except OSError as exc:
-                raise _naming(exc, self.path) from None
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
 
 def _naming(exc, path):
     """`exc` (an OSError of a write to the log) with the log's path as its filename, so the error

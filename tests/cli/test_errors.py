@@ -178,11 +178,11 @@ def test_a_log_whose_board_stops_streaming_ends_with_a_link_error(monkeypatch):
     reach it, so after NO_DATA_S of wall time without a record the recording ends with LinkError."""
     from types import SimpleNamespace
 
-    import host.link.telemetry_log as telemetry_log
+    import host.link.stream as stream
     from host.errors import LinkError
 
-    monkeypatch.setattr(telemetry_log, "NO_DATA_S", 0.3)
+    monkeypatch.setattr(stream, "NO_DATA_S", 0.3)
     silent = SimpleNamespace(port="/dev/ttyACM9", heartbeat_if_due=lambda: None, frames=lambda timeout: [])
-    recording = telemetry_log.Recording(silent, "unused.csv")
+    tee = stream.Tee(silent, sinks=[lambda rows: None])
     with pytest.raises(LinkError, match="no telemetry from /dev/ttyACM9"):
-        recording.pump(seconds=5.0)
+        tee.pump(seconds=5.0)

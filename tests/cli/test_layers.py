@@ -75,3 +75,14 @@ def test_the_check_sees_an_upward_import(tmp_path):
     path = tmp_path / "m.py"
     path.write_text("def f():\n    from host.commands.fit import run\n    import host.guided.acquire\n")
     assert {"host.commands.fit", "host.guided.acquire"} <= host_imports(path)
+
+
+def test_only_the_connection_opens_a_client():
+    """One door to a board: a BoardClient is built only by host.link.connect.Connection (open,
+    reconnect); everything else, host flash's own steps included, opens a Connection."""
+    builders = []
+    for p in modules():
+        for node in ast.walk(ast.parse(p.read_text(), str(p))):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", getattr(node.func, "attr", None)) == "BoardClient":
+                builders.append(module_name(p))
+    assert builders and set(builders) == {"host.link.connect"}, builders

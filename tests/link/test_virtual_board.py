@@ -17,7 +17,9 @@ from host.link.board_client import BoardClient
 from host.link.board_time import BoardTime
 from host.errors import UserError
 from host.link.frames import FrameDecoder
-from host.link.telemetry_log import Recording, load
+from host.link.connect import Connection
+from host.link.stream import Arrays
+from host.link.telemetry_log import CsvLog, load
 from host.link.virtual_board import VirtualBoard
 
 from testkit import processes as host_processes
@@ -129,9 +131,9 @@ def test_the_watchdog_stops_the_motor_after_a_second_of_board_time_without_the_h
 
 def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
     out = tmp_path / "run.csv"
-    with BoardClient(vboard.path) as board:
-        with Recording(board, out, 1000) as recording:
-            summary = recording.pump(10)
+    with Connection(vboard.path) as connection:
+        with CsvLog(out, connection.client.call("status"), 1000) as csv_log, connection.tee(1000, [csv_log]) as tee:
+            summary = tee.pump(10)
     data = load(out)
     t = data["t_us"]
     assert summary.lost_frames == 0 and summary.board_dropped == 0 and summary.crc_errors == 0
@@ -139,6 +141,28 @@ def test_ten_seconds_at_1khz_with_zero_lost_frames(vboard, tmp_path):
     # (a loaded virtual board drops ticks it cannot catch up and takes longer in wall time) ...
     assert len(t) == summary.samples and 10.0 <= (t[-1] - t[0]) / 1e6 < 10.5
     assert set(np.diff(t)) == {1000}  # ... and every record of every step arrived, in order
+
+
+def test_one_stream_feeds_every_sink_while_a_tee_logs_the_whole_run(vboard, tmp_path):
+    """Connection.stream hands each frame's records to every sink (numpy arrays, any callable),
+    cut at its seconds of board time; a tee on the same connection (the CSV of host log, or of
+    move --log) gets those frames too and the ones before and after, with no gap."""
+    out = tmp_path / "sinks.csv"
+    sizes, arrays = [], Arrays()
+    with Connection(vboard.path) as connection:
+        with CsvLog(out, connection.client.call("status"), 500) as csv_log, connection.tee(500, [csv_log]) as tee:
+            tee.pump(0.2)
+            covered = connection.stream(0.5, 500, [arrays, lambda rows: sizes.append(len(rows))])
+            tee.pump(0.2)
+        assert connection.link is connection.client  # the tee is off again
+    run, logged = arrays.run(), load(out)
+    assert 0.5 <= covered < 0.6 and 0.496 < run["t_s"][-1] <= 0.5  # the last frame cut at 0.5 s
+    assert len(run["t_us"]) == sum(sizes) and set(np.diff(run["t_us"]) % (1 << 30)) == {2000}
+    t = logged["t_us"]
+    assert tee.summary.samples == len(t) and set(np.diff(t) % (1 << 30)) == {2000}  # no gap, whoever read
+    first = int(np.flatnonzero(t == run["t_us"][0])[0])
+    assert first >= 90 and (t[first:first + len(run["t_us"])] == run["t_us"]).all()
+    assert len(t) - first - len(run["t_us"]) >= 90  # and the second pump's 0.2 s after
 
 
 def test_cli_log_and_plot(vboard, tmp_path, capsys):
