@@ -15,7 +15,7 @@ import sys  # noqa: E402
 import host
 import host.commands
 from host import terminal
-from host.errors import UserError, os_error_line
+from host.errors import CLOSED_PIPE, DONE, EXIT_STATUSES, INTERRUPTED, USER_ERROR, UserError, os_error_line
 
 
 class _Parser(argparse.ArgumentParser):
@@ -37,6 +37,7 @@ def build_parser():
         prog="host",
         description="lsea-kit host tools: fit potentiometer calibrations, talk to the board, "
         "run the guided calibration and the paper's experiments.",
+        epilog="exit status, the same for every command: %s." % "; ".join("%d %s" % pair for pair in EXIT_STATUSES),
     )
     parser.add_argument("--version", action="version", version="lsea-kit " + host.__version__)
     parser.add_argument("-q", "--quiet", action="store_true",
@@ -63,7 +64,7 @@ def main(argv=None):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # no error at exit's flush
         except (OSError, ValueError):
             pass
-        return 141
+        return CLOSED_PIPE
 
 
 def _main(argv):
@@ -74,21 +75,21 @@ def _main(argv):
         return exc.code
     if not getattr(args, "func", None):
         parser.print_help()
-        return 2
+        return USER_ERROR
     terminal.set_quiet(args.quiet)
     try:
-        return args.func(args) or 0
+        return args.func(args) or DONE
     except UserError as exc:
         terminal.error(str(exc))
-        return 2
+        return USER_ERROR
     except KeyboardInterrupt:
         terminal.interrupted()
-        return 130
+        return INTERRUPTED
     except BrokenPipeError:
         raise  # main() ends a closed pipe quietly
     except OSError as exc:  # a serial port gone (serial.SerialException is one), a full disk, a directory for a file
         terminal.error(os_error_line(exc))
-        return 2
+        return USER_ERROR
 
 
 if __name__ == "__main__":

@@ -4,6 +4,20 @@ Raise `UserError` for anything the user can fix (a bad file, a missing column, a
 the CLI prints its message on one line and exits with status 2, never a traceback.
 """
 
+# A command's exit status means the same in every command (`host --help` says it):
+DONE = 0  # what was asked is done
+MISSED = 1  # measured, and what was asked not reached or cut off; what was measured is kept
+USER_ERROR = 2  # the input or the setup (an option, a file, a port, a check that refused): one line says what
+INTERRUPTED = 130  # Ctrl-C, the shell's 128 + SIGINT
+CLOSED_PIPE = 141  # the reader of the output went away (`host status | head -3`), the shell's 128 + SIGPIPE
+EXIT_STATUSES = ((DONE, "done"),
+                 (MISSED, "measured, and the goal missed or the run cut off, what was measured kept (move or force "
+                          "not settled, no gain set settled, nothing accepted, a calibration or experiment stopped "
+                          "partway)"),
+                 (USER_ERROR, "the input or the setup, one line saying what to fix (a bad option, file or port, a "
+                              "lost board, a check that refused)"),
+                 (INTERRUPTED, "Ctrl-C"), (CLOSED_PIPE, "the output's reader went away (| head)"))
+
 
 class UserError(Exception):
     """An error caused by input or environment, with a message that says what to do."""

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from firmware.board_config import STROKE_LIMIT_MM
 from host.commands._options import PORT_HELP, add_uf2_argument, order_or_auto, ranged
-from host.errors import UserError
+from host.errors import DONE, MISSED, UserError
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
 from host.terminal import error, output
@@ -197,7 +197,7 @@ def run(args):
         error("the calibration stopped %s: %s; %s in %s and %s" % (
             "during %s" % phase if phase else "before its first step", why,
             "what it measured is" if log.measured else "the run log is", log.json_path, log.report_path))
-        return 1
+        return MISSED
     log.finish()
     output("calibration %s: %s accepted (results: %s)" % (args.out, ", ".join(accepted) or "nothing", log.report_path))
-    return 0 if accepted else 1
+    return DONE if accepted else MISSED

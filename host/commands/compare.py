@@ -4,7 +4,7 @@ import time
 from pathlib import Path
 
 from host.commands._options import parsed, ranged
-from host.errors import UserError
+from host.errors import DONE, UserError
 from host.terminal import end_progress, live, note, output, warn
 from host.fitting.compare import DEFAULT_MODELS, compare_models, parse_models, parse_orders, pivot_markdown, write_outputs
 
@@ -87,4 +87,4 @@ def run(args):
     for r in failed:
         warn("%s order %d not fitted: %s" % (r["model"], r["order"], r["error"]))
     output("\n%d fits in %.2f s; wrote %s" % (len(rows), wall, ", ".join(str(p) for p in paths)))
-    return 0
+    return DONE

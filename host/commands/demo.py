@@ -8,7 +8,7 @@ firmware can load, and prints where they are.
 import sys
 from pathlib import Path
 
-from host.errors import UserError
+from host.errors import DONE, UserError
 from host.terminal import note, output
 
 
@@ -91,7 +91,7 @@ def run(args):
     report.write_text(_report(source, sweep, floors, bcm, auto, reason, cal))
     say("[4/4] wrote %s, %s, %s" % (out_dir / "fit.png", out_dir / "fit_auto.png", report))
     output("report: %s" % report)
-    return 0
+    return DONE
 
 
 def _report(source, sweep, floors, bcm, auto, reason, cal):

@@ -4,7 +4,7 @@ from pathlib import Path
 
 from host.commands._options import PORT_HELP, add_uf2_argument, ranged
 from host.commands.calibrate import DEFAULT, add_gauge_arguments, add_method_arguments, make_rig, method_options
-from host.errors import UserError
+from host.errors import DONE, MISSED, UserError
 from host.terminal import error, output
 
 
@@ -68,6 +68,6 @@ def run(args):
         path = write_stopped(out_dir, results, phase, why)
         error("the experiment stopped during %s: %s; what it measured is in %s and %s"
               % (phase, why, out_dir / "results.json", path))
-        return 1
+        return MISSED
     output("report: %s (%.0f s)" % (path, results["timings"]["total"]))
-    return 0
+    return DONE

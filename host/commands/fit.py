@@ -5,7 +5,7 @@ import math
 import time
 
 from host.commands._options import ranged
-from host.errors import UserError
+from host.errors import DONE, UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.fitting.pot_fit import RMS_REFUSE, fit_sweep, poor_fit, refusals
@@ -145,10 +145,10 @@ def run(args):
                               "board": args.board, "pot_id": args.pot_id}
     if args.json:
         output(json.dumps(out, indent=2, default=float))
-        return 0
+        return DONE
     output("\n".join(report(result, sweep, floors, args.unit, reason)))
     if args.plot:
         output("plot: %s" % args.plot)
     if args.out:
         output("calibration: %s section %s written (crc32 %08x)" % (args.out, args.pot, crc))
-    return 0
+    return DONE

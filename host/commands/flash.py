@@ -1,7 +1,7 @@
 """`host flash`: compile and install the firmware, board file and calibration, then verify."""
 
 from host.commands._options import PORT_HELP, add_uf2_argument, add_load_argument
-from host.errors import UserError
+from host.errors import DONE, UserError
 from host.link.connect import Connection
 from host.terminal import note, output
 
@@ -43,7 +43,7 @@ def run(args):
         written = install(args.drive, args.board, args.calibration, progress=progress, force=args.force)
         output("installed on %s: %d files, verified; CircuitPython reloads code.py by itself (check with host status)"
               % (args.drive, len(written)))
-        return 0
+        return DONE
     # check=False: a board may have no firmware yet (a virtual one starts with an empty flash)
     with Connection(args.port, args.board, load=args.load, factory=False, uf2=args.uf2, ready=False,
                     check=False) as connection:
@@ -56,4 +56,4 @@ def run(args):
         raise UserError("firmware did not report a version")
     output("flashed: firmware %s on %s, calibration %s" % (status["version"], status["board"],
           "%08x" % (status["calibration_crc"] & 0xFFFFFFFF) if status.get("calibration_crc") is not None else "none (%s)" % status.get("calibration_error")))
-    return 0
+    return DONE

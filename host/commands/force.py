@@ -3,7 +3,7 @@ records it over the same connection, --live plots it as it comes."""
 
 from host.commands._options import add_port_arguments, live_arguments, ranged
 from host.commands.move import report, run_motion
-from host.errors import UserError
+from host.errors import DONE, MISSED, UserError
 
 
 def add_parser(subparsers):
@@ -37,4 +37,4 @@ def run(args):
         "" if outcome.reached else ": " + outcome.cause))
     if kept:  # --keep: the outcome is printed, the board let go; the window is the person's to close
         kept.wait()
-    return 0 if outcome.reached else 1  # 1: measured, and missed (as host move)
+    return DONE if outcome.reached else MISSED

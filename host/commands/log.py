@@ -3,6 +3,7 @@ it with a complete file."""
 
 from host.api import Board
 from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
+from host.errors import DONE
 from host.link.live_view import watched
 from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path
 from host.terminal import end_progress, output, progress_line, warn
@@ -46,4 +47,4 @@ def run(args):
         output("plot: %s" % png)
     if kept:  # --keep: the file is complete, the board let go; the window is the person's to close
         kept.wait()
-    return 0
+    return DONE

@@ -6,7 +6,7 @@ import json
 from firmware.board_config import STROKE_LIMIT_MM
 from host.api import Board
 from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
-from host.errors import UserError
+from host.errors import DONE, MISSED, UserError
 from host.link.live_view import watched
 from host.terminal import end_progress, output, progress_line
 
@@ -72,4 +72,4 @@ def run(args):
         "" if outcome.reached else ": " + outcome.cause))
     if kept:  # --keep: the outcome is printed, the board let go; the window is the person's to close
         kept.wait()
-    return 0 if outcome.reached else 1
+    return DONE if outcome.reached else MISSED

@@ -4,7 +4,7 @@ import json
 
 from host.api import Board
 from host.commands._options import add_port_arguments
-from host.errors import UserError
+from host.errors import DONE, UserError
 from host.link.board_params import check_value
 from host.terminal import output
 
@@ -78,11 +78,11 @@ def run(args):
         else:
             for name in reads:
                 output("%s %d %s" % (name, table[name].value, table[name].unit))
-        return 0
+        return DONE
     if args.json:
         output(json.dumps({"params": [p.as_dict() for p in table.values()], "saved": status.get("params_saved"),
                           "file_error": status.get("params_file_error")}, indent=1))
-        return 0
+        return DONE
     if not sets or args.save or args.defaults:
         output("\n".join(describe(table, status.get("params_saved"))))
     else:
@@ -96,4 +96,4 @@ def run(args):
             saved_result.get("file"), ", ".join("%s=%d" % kv for kv in sorted(changed.items())) or "all defaults"))
     elif sets:
         output("not saved: these last until the board restarts (host params --save keeps them)")
-    return 0
+    return DONE

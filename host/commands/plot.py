@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from host.errors import UserError
+from host.errors import DONE, UserError
 from host.link.telemetry_plot import plot
 from host.terminal import output, warn
 
@@ -25,4 +25,4 @@ def run(args):
     except (ValueError, KeyError) as exc:
         raise UserError("cannot plot %s: %s" % (src, exc))
     output(out)
-    return 0
+    return DONE

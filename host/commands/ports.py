@@ -3,6 +3,7 @@ whether lsea-kit firmware answers there."""
 
 import json
 
+from host.errors import DONE
 from host.link import ports as port_list
 from host.link.port_advice import advice
 from host.link.ports import label
@@ -36,10 +37,10 @@ def run(args):
                  **({"probe": probe(device)} if args.probe and label(vid, pid) else {})}
                 for device, vid, pid, desc in ports]
         output(json.dumps(rows, indent=1))
-        return 0
+        return DONE
     if not ports:
         output(advice("no ports", None))
-        return 0
+        return DONE
     for device, vid, pid, desc in ports:
         ids = "%04x:%04x" % (vid, pid) if isinstance(vid, int) and isinstance(pid, int) else "-"
         what = label(vid, pid) or "not a board we know"
@@ -47,4 +48,4 @@ def run(args):
         if args.probe and label(vid, pid):
             line += ": " + probe(device)
         output(line)
-    return 0
+    return DONE

@@ -4,6 +4,7 @@ import json
 
 from host.calibration.file import read_calibration
 from host.calibration.report import compare, describe
+from host.errors import DONE
 from host.terminal import output
 
 
@@ -29,11 +30,11 @@ def run(args):
         else:
             output("%s:" % args.file)
             output("\n".join("  " + line for line in describe(a, crc)))
-        return 0
+        return DONE
     b = read_calibration(args.other)
     if args.json:
         output(json.dumps({"first": a, "second": b}, indent=1, sort_keys=True))
-        return 0
+        return DONE
     output("%s | %s:" % (args.file, args.other))
     output("\n".join("  " + line for line in compare(a, b)))
-    return 0
+    return DONE

@@ -5,6 +5,7 @@ import signal
 import time
 
 from host.commands._options import add_load_argument, add_uf2_argument
+from host.errors import DONE
 from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard, ready_calibration
 from host.terminal import note, output
 
@@ -105,4 +106,4 @@ def run(args):
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)
-    return 0
+    return DONE

@@ -5,6 +5,7 @@ import json
 from firmware.protocol import STATUS_KEYS
 from host.api import Board
 from host.commands._options import add_port_arguments
+from host.errors import DONE
 from host.terminal import output
 
 # how each key of firmware/protocol.py STATUS_KEYS is shown, in that order (a test checks every key
@@ -90,4 +91,4 @@ def run(args):
         output(json.dumps(status, indent=1, sort_keys=True))
     else:
         output("\n".join(describe(status)))
-    return 0
+    return DONE

@@ -2,6 +2,7 @@
 
 from host.commands._options import add_port_arguments
 from host.commands.reset import cleared
+from host.errors import DONE
 from host.link.connect import Connection
 from host.terminal import output
 
@@ -26,4 +27,4 @@ def run(args):
         elif faults:
             output("latched: %s (host reset clears them once the cause is fixed)" % ", ".join(faults))
         output("stopped")
-    return 0
+    return DONE

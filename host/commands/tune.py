@@ -5,7 +5,7 @@ import json
 
 from firmware.pi_control import GAIN_MAX
 from host.commands._options import add_port_arguments, nonzero, parsed, ranged
-from host.errors import UserError
+from host.errors import DONE, MISSED, UserError
 from host.guided.tuning import LOOPS, tune
 from host.link.connect import Connection
 from host.terminal import end_progress, output, progress_line
@@ -135,5 +135,5 @@ def run(args):
         if png:
             output("plot: %s" % png)
     if chosen is None:
-        return 1
-    return 0
+        return MISSED
+    return DONE

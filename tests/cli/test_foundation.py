@@ -6,10 +6,32 @@ import sys
 from testkit.interpreters import run_micropython
 
 
-def test_cli_help_lists_commands():
+def test_cli_help_lists_commands_and_the_exit_statuses():
     out = subprocess.run([sys.executable, "-m", "host", "--help"], capture_output=True, text=True)
     assert out.returncode == 0
     assert "usage: host" in out.stdout
+    said = " ".join(out.stdout.split())
+    assert "exit status, the same for every command: 0 done; 1 measured, and the goal missed" in said
+    assert "; 2 the input or the setup" in said and "; 130 Ctrl-C; 141" in said
+
+
+def test_every_command_returns_a_named_exit_status():
+    """0, 1 and 2 mean one thing each in every command (host.errors.EXIT_STATUSES): a command
+    returns DONE, MISSED or USER_ERROR by name, never a bare number whose meaning it chose."""
+    import ast
+    from pathlib import Path
+
+    import host
+
+    root = Path(host.__file__).parent
+    bare = []
+    for path in sorted((root / "commands").glob("*.py")) + [root / "cli.py"]:
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Return) and node.value is not None:
+                values = [node.value.body, node.value.orelse] if isinstance(node.value, ast.IfExp) else [node.value]
+                bare += ["%s:%d" % (path.name, node.lineno) for v in values
+                         if isinstance(v, ast.Constant) and isinstance(v.value, int) and not isinstance(v.value, bool)]
+    assert not bare, "bare exit statuses: %s" % bare
 
 
 def test_micropython_is_real_and_locks_heap():
