@@ -19,7 +19,7 @@ EVERY_COMMAND = ("-h", "--help", "-q", "--quiet")
 
 def _shared_options():
     """{flag: help} of the options every board command takes (host/commands/_options.py), said
-    once under the table; a command's own option of the same name (flash's --board) is listed."""
+    once under the table for the commands that take all of them; the others list their own."""
     from host.commands._options import add_port_arguments
 
     parser = argparse.ArgumentParser(add_help=False)
@@ -69,9 +69,11 @@ def table(parser=None):
     lines = ["| command | what it does | its options |", "| --- | --- | --- |"]
     board = []
     for name, help_text, command in _commands(parser):
-        words, options = _synopsis(command, shared)
-        if any(a.help == shared["--port"] for a in command._actions):
+        own = dict((max(a.option_strings, key=len), a.help) for a in command._actions if a.option_strings)
+        takes_all = all(own.get(flag) == text for flag, text in shared.items())
+        if takes_all:  # said once under the table; a command with only some of them lists its own
             board.append(name)
+        words, options = _synopsis(command, shared if takes_all else {})
         lines.append("| `%s` | %s | %s |" % (_cell(" ".join(["host", name] + words)), _cell(help_text),
                                            " ".join("`%s`" % _cell(o) for o in options)))
     lines.append("")
