@@ -115,6 +115,16 @@ def add_port_arguments(parser):
     add_uf2_argument(parser)
 
 
+def open_board(args, **options):
+    """The board add_port_arguments' options name, as a host.api.Board (a context manager; closing
+    it stops the motor): the one way a board command opens its board. `options`: Board's
+    (require_calibration, stop_on_exit)."""
+    from host.api import Board
+
+    return Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
+                 uncalibrated=args.uncalibrated, **options)
+
+
 def live_arguments(parser, with_log=True):
     """--live and --keep (and for a motion command --log FILE and --rate) on a command's parser;
     check_live(args) refuses the combinations that cannot work."""

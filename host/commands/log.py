@@ -1,8 +1,7 @@
 """`host log`: stream telemetry to a CSV file with progress, optionally watched live; Ctrl-C ends
 it with a complete file."""
 
-from host.api import Board
-from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
+from host.commands._options import add_port_arguments, check_live, live_arguments, open_board, ranged
 from host.errors import DONE
 from host.link.live_view import watched
 from host.link.telemetry_log import CALIBRATED_FIELDS, metadata_path
@@ -31,8 +30,7 @@ def run(args):
     def progress(s):
         progress_line("%8d samples  %7.1f/s  lost frames %d  board drops %d" % (s.samples, s.rate, s.lost_frames, s.board_dropped), every=1.0)
 
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
-               uncalibrated=args.uncalibrated) as board:
+    with open_board(args) as board:
         status = board.client.status_info or {}
         if status.get("calibration_crc") is None:
             warn("the board has no usable calibration (%s): %s will be 0; the raw ADC codes (raw1, raw2, raw_ref) are "

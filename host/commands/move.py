@@ -4,8 +4,7 @@ records the move's telemetry over the same connection, --live plots it as it com
 import json
 
 from firmware.board_config import STROKE_LIMIT_MM
-from host.api import Board
-from host.commands._options import add_port_arguments, check_live, live_arguments, ranged
+from host.commands._options import add_port_arguments, check_live, live_arguments, open_board, ranged
 from host.errors import DONE, MISSED, UserError
 from host.link.live_view import watched
 from host.terminal import end_progress, output, progress_line
@@ -34,9 +33,7 @@ def run_motion(args, motion, unit):
     def progress(value, seconds):
         progress_line("%6.2f s  %8.3f %s" % (seconds, value, unit), every=1.0)
 
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
-               uncalibrated=args.uncalibrated, require_calibration=True,
-               stop_on_exit=not args.hold) as board:
+    with open_board(args, require_calibration=True, stop_on_exit=not args.hold) as board:
         if args.log:
             outcome, summary, png, kept = watched(board, args.log, args.rate, args.live,
                                                   lambda _: motion(board, progress), keep=args.keep)

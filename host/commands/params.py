@@ -2,8 +2,7 @@
 
 import json
 
-from host.api import Board
-from host.commands._options import add_port_arguments
+from host.commands._options import add_port_arguments, open_board
 from host.errors import DONE, UserError
 from host.link.board_params import check_value
 from host.terminal import output
@@ -60,8 +59,7 @@ def describe(table, saved=None):
 
 
 def run(args):
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
-               uncalibrated=args.uncalibrated) as board:
+    with open_board(args) as board:
         table = board.params()
         reads, sets = parse_items(args.items, table)  # all checked before anything is set
         if args.defaults:

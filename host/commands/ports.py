@@ -20,14 +20,15 @@ def add_parser(subparsers):
 def probe(device):
     """'lsea-kit VERSION on BOARD' or why not."""
     from host.errors import UserError
-    from host.link.connect import Connection
+    from host.link.connect import ask_firmware
 
     try:
-        with Connection(device, check=False) as connection:
-            st = connection.client.handshake()
-        return "lsea-kit %s on %s" % (st.get("version"), st.get("board"))
-    except (UserError, OSError) as exc:
-        return "no lsea-kit firmware (%s)" % (str(exc).split(":")[0],)
+        hello, why_not = ask_firmware(device)
+    except (UserError, OSError) as exc:  # the port would not open: said on its line, the others go on
+        hello, why_not = None, str(exc)
+    if hello is None:
+        return "no lsea-kit firmware (%s)" % (why_not.split(":")[0],)
+    return "lsea-kit %s on %s" % (hello.get("version"), hello.get("board"))
 
 
 def run(args):

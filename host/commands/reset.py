@@ -1,8 +1,7 @@
 """`host reset`: name the latched faults, clear them, motor off and mode idle: ready to move."""
 
-from host.commands._options import add_port_arguments
+from host.commands._options import add_port_arguments, open_board
 from host.errors import DONE
-from host.link.connect import Connection
 from host.terminal import output
 
 
@@ -19,7 +18,6 @@ def cleared(board):
 
 
 def run(args):
-    with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as connection:
-        board = connection.client
-        output(cleared(board))
+    with open_board(args) as board:
+        output(cleared(board.client))
     return DONE

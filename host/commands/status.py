@@ -3,8 +3,7 @@
 import json
 
 from firmware.protocol import STATUS_KEYS
-from host.api import Board
-from host.commands._options import add_port_arguments
+from host.commands._options import add_port_arguments, open_board
 from host.errors import DONE
 from host.terminal import output
 
@@ -81,8 +80,7 @@ def describe(status):
 
 
 def run(args):
-    with Board(args.port, board=args.board, calibration=args.calibration, load=args.load, uf2=args.uf2,
-               uncalibrated=args.uncalibrated) as board:
+    with open_board(args) as board:
         status = board.status()
     if args.json:
         crc = status.get("calibration_crc")

@@ -1,9 +1,8 @@
 """`host stop`: motor off, mode idle, and the board ready to move again."""
 
-from host.commands._options import add_port_arguments
+from host.commands._options import add_port_arguments, open_board
 from host.commands.reset import cleared
 from host.errors import DONE
-from host.link.connect import Connection
 from host.terminal import output
 
 
@@ -18,8 +17,8 @@ def add_parser(subparsers):
 
 
 def run(args):
-    with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated) as connection:
-        board = connection.client
+    with open_board(args) as opened:
+        board = opened.client
         board.call("stop")
         faults = board.call("status").get("faults") or []
         if faults == ["host_timeout"]:

@@ -4,10 +4,9 @@
 import json
 
 from firmware.pi_control import GAIN_MAX
-from host.commands._options import add_port_arguments, nonzero, parsed, ranged
+from host.commands._options import add_port_arguments, nonzero, open_board, parsed, ranged
 from host.errors import DONE, MISSED, UserError
 from host.guided.tuning import LOOPS, tune
-from host.link.connect import Connection
 from host.terminal import end_progress, output, progress_line
 
 DEFAULTS = {  # mode -> (start, step, band) in the shown unit (mm or N)
@@ -106,8 +105,8 @@ def run(args):
     def progress(i, n, gains):
         progress_line("trial %d/%d: %s" % (i + 1, n, " ".join("%s=%d" % kv for kv in gains.items())))
 
-    with Connection(args.port, args.board, args.calibration, args.load, uf2=args.uf2, ready=not args.uncalibrated, require_calibration=True) as connection:
-        board = connection.client
+    with open_board(args, require_calibration=True) as opened:
+        board = opened.client
         if args.mode == "position":
             lo, hi = (v / 1000.0 for v in board.call("status")["stroke_um"])
             if not (lo <= start <= hi and lo <= start + step <= hi):

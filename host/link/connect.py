@@ -156,6 +156,18 @@ def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=N
     return BoardPort(port, board, calibration, load, factory, uf2, progress, ready)
 
 
+def ask_firmware(port):
+    """What lsea-kit firmware on `port` says it is: (its hello, None), or (None, why nothing of
+    ours answers). A port that will not open raises (UserError, OSError): that is for the user
+    to fix. The one way to ask a port what runs there (host flash before installing, host ports
+    --probe)."""
+    with Connection(port, check=False) as connection:  # check=False: a board may have no firmware yet
+        try:
+            return connection.client.handshake(), None
+        except (UserError, OSError) as exc:
+            return None, str(exc)
+
+
 class Connection:
     """One connection to a board, the one every command and the guided calibration use: the
     resolved port (open_port: a board started for the command stays alive behind it), the

@@ -329,13 +329,10 @@ def check_files(board_path, calibration=None, force=False):
 
 def identify(port):
     """The board name our firmware on `port` reports, or None (no firmware of ours answers)."""
-    from host.link.connect import Connection
+    from host.link.connect import ask_firmware
 
-    with Connection(port, check=False) as connection:  # a missing or busy port is for the user to fix
-        try:
-            return connection.client.handshake().get("board")
-        except (UserError, OSError):
-            return None
+    hello, _why_not = ask_firmware(port)
+    return None if hello is None else hello.get("board")
 
 
 def to_repl(port):
