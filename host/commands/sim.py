@@ -6,7 +6,7 @@ import time
 
 from host.commands._options import add_load_argument, add_uf2_argument
 from host.errors import DONE
-from host.link.virtual_board import DEFAULT_BOARD, VirtualBoard, ready_calibration
+from host.link.connect import open_port
 from host.terminal import note, output
 
 _STOP_SIGNALS = (signal.SIGTERM, signal.SIGHUP)
@@ -50,39 +50,22 @@ def _raise_stopped(signum, frame):
     raise _Stopped(signum)
 
 
-def _emulated_pico(args):
-    from host.link.emulated_pico.board import SIM_BOARD, EmulatedPico, default_board
-    from host.link.flashing import flash, resolve_board
-
-    board_path, _ = resolve_board(args.board or str(default_board(args.uf2)))
-    pico = EmulatedPico(uf2=args.uf2, board=board_path, actuator=args.actuator or SIM_BOARD,
-                        flash_image=args.flash_image, load=args.load, log=note)
-    path = pico.start()
-    if not args.no_install:
-        note("installing the firmware on the emulated Pico with host flash")
-        try:
-            flash(path, str(board_path), args.calibration, progress=lambda m: note("  " + m), ask_board=False)
-        except BaseException:
-            pico.stop()
-            raise
-    return pico, path, "emulated Pico (%s)" % pico.uf2
-
-
 def run(args):
     previous = {s: signal.signal(s, _raise_stopped) for s in _STOP_SIGNALS}  # before anything starts
-    board = None
+    where = None
     try:
+        # the one door to a board started for a command (host.link.connect.open_port), kept open
+        # until a signal: the same board files, calibrations and checks as --port sim / sim:rp2040
+        where = open_port("sim:rp2040" if args.chip == "rp2040" else "sim", args.board, args.calibration, args.load,
+                          factory=not (args.no_install and args.chip == "rp2040"), uf2=args.uf2, progress=note, ready=not args.uncalibrated,
+                          root=args.root, actuator=args.actuator, flash_image=args.flash_image)
+        where.open()
+        board, path = where.virtual, where.path
         if args.chip == "rp2040":
-            board, path, what = _emulated_pico(args)
+            what = "emulated Pico (%s)" % board.uf2
         else:
-            board_path = args.board or str(DEFAULT_BOARD)
-            calibration = args.calibration
-            if calibration is None and not args.uncalibrated:
-                calibration = ready_calibration(board_path)
-            board = VirtualBoard(board=board_path, calibration=calibration, root=args.root, load=args.load)
-            path = board.start()
-            what = "virtual board (flash in %s) with %s" % (board.root, "calibration %s" % calibration if calibration
-                                                           else "no calibration")
+            what = "virtual board (flash in %s) with %s" % (board.root, "calibration %s" % board.calibration
+                                                           if board.calibration else "no calibration")
         from host.link.running_sims import register, unregister
 
         # host ports and --port auto find it while it runs; a guided calibration on its pty mounts its rig
@@ -101,8 +84,8 @@ def run(args):
         for s in previous:  # a second Ctrl-C or signal must not cut the clean-up short
             signal.signal(s, signal.SIG_IGN)
         try:
-            if board is not None:
-                board.stop()
+            if where is not None:
+                where.close()
         finally:
             for s, handler in previous.items():
                 signal.signal(s, handler)

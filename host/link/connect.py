@@ -39,7 +39,8 @@ def virtual_kind(port):
 class BoardPort:
     """The serial path of a board for one command; for `sim` the virtual board behind it."""
 
-    def __init__(self, port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False):
+    def __init__(self, port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False,
+                 root=None, actuator=None, flash_image=None):
         from host.link.ports import resolve
 
         self.port = resolve(port)
@@ -50,6 +51,9 @@ class BoardPort:
         self.uf2 = uf2
         self.progress = progress
         self.ready = ready  # a unix-port virtual board of boards/sim.json starts calibrated
+        self.flash_dir = root  # a unix-port virtual board's flash directory (None: a temp dir)
+        self.actuator = actuator  # an emulated Pico's simulated actuator (a board file; None: boards/sim.json's)
+        self.flash_image = flash_image  # an emulated Pico's filesystem, kept in this file (None: fresh each run)
         self.virtual = None
         self.path = None
 
@@ -87,12 +91,12 @@ class BoardPort:
         if calibration is None and self.ready and self.factory:
             calibration = ready_calibration(board_path)
         self.virtual = VirtualBoard(board=board_path, calibration=calibration, load=self.load,
-                                    factory=self.factory)
+                                    factory=self.factory, root=self.flash_dir)
         self.path = self.virtual.start()
         return self
 
     def _open_pico(self):
-        from host.link.emulated_pico.board import EmulatedPico, default_board
+        from host.link.emulated_pico.board import SIM_BOARD, EmulatedPico, default_board
         from host.link.flashing import flash, resolve_board
 
         board_path, board = resolve_board(self.board or str(default_board(self.uf2)))
@@ -101,7 +105,8 @@ class BoardPort:
         if self.calibration is not None and not Path(self.calibration).is_file():
             raise UserError("calibration file not found: %s" % self.calibration)
         say = self.progress or _note
-        self.virtual = EmulatedPico(uf2=self.uf2, board=board_path, load=self.load, log=say)
+        self.virtual = EmulatedPico(uf2=self.uf2, board=board_path, actuator=self.actuator or SIM_BOARD,
+                                    flash_image=self.flash_image, load=self.load, log=say)
         self.path = self.virtual.start()
         if self.factory:  # as a person does with a new Pico: host flash, over its USB serial
             say("emulated Pico on %s: installing the firmware with host flash" % self.path)
@@ -143,7 +148,8 @@ def _attached(path):
     return VirtualBoard(board=record["board"], root=record["root"])
 
 
-def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False):
+def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=None, progress=None, ready=False,
+              root=None, actuator=None, flash_image=None):
     """A BoardPort for `port` (use as a context manager): a device path as it is, `auto` resolved,
     `sim` a virtual board with `board` (name or file, default boards/sim.json), `calibration` on
     its flash and `load` (a host.link.virtual_board.parse_load dict) hooked on its block;
@@ -152,8 +158,10 @@ def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=N
     `factory=False` leaves its flash empty (for `host flash`). `progress(text)`: what a starting
     emulated Pico says (default: progress lines on stderr). `ready`: a `sim` board of
     boards/sim.json without `calibration` gets the shipped one (virtual_board.READY_CALIBRATION)
-    instead of starting uncalibrated."""
-    return BoardPort(port, board, calibration, load, factory, uf2, progress, ready)
+    instead of starting uncalibrated. `root` (sim: its flash directory), `actuator` and
+    `flash_image` (sim:rp2040: the simulated actuator wired to it, its filesystem kept in a file):
+    what `host sim` offers."""
+    return BoardPort(port, board, calibration, load, factory, uf2, progress, ready, root, actuator, flash_image)
 
 
 def ask_firmware(port):
