@@ -24,22 +24,15 @@ def add_parser(subparsers):
     )
     p.add_argument("step", nargs="?", choices=(BRINGUP,) + STEPS + ("all",), default="all",
                    help="one step, or all in order (default; bringup first unless it passed before on this board)")
-    p.add_argument("--port", default="auto",
-                   help=PORT_HELP)
-    add_uf2_argument(p)
-    p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports; sim: boards/sim.json)")
-    p.add_argument("--yes", action="store_true", help="no questions: mount automatically (virtual rig), accept results that pass every check")
-    p.add_argument("--out", default="calibration.json", metavar="FILE", help="calibration file to write (default calibration.json)")
+    add_guided_arguments(p, yes_help="no questions: mount automatically (virtual rig), accept results that pass every check")
+    p.add_argument("--out", default=str(DEFAULT.out), metavar="FILE", help="calibration file to write (default %(default)s)")
     p.add_argument("--plots", default=None, metavar="DIR", help="where to write the PNG plots (default: beside --out)")
     p.add_argument("--reference", choices=("adc", "manual"), default=DEFAULT.reference,
                    help="pots: the reference sensor on the board's reference ADC input (adc), or dial-gauge readings typed in (manual)")
-    p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
-    p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over its full scale, mm (real boards)")
     p.add_argument("--manual-points", type=ranged(int, 3, 200), default=DEFAULT.manual_points, help="--reference manual: stops per direction (default %(default)s)")
     add_method_arguments(p)
     add_gauge_arguments(p)
     p.add_argument("--duty", type=ranged(int, 100, 6000), default=DEFAULT.duty, help="open-loop duty of the sweeps, of 10000 (default %(default)s: ~13 mm/s)")
-    p.add_argument("--rounds", type=ranged(int, 1, 20), default=DEFAULT.rounds, help="force: loading/unloading rounds (paper: 5; default %(default)s)")
     p.add_argument("--levels", type=ranged(int, 3, 50), default=DEFAULT.levels, help="force: loading steps of 5000/N duty each (default %(default)s), "
                    "taken until the gauge reads --force-range")
     p.add_argument("--force-range", type=ranged(float, 1, 25), default=DEFAULT.force_range, metavar="N",
@@ -48,8 +41,21 @@ def add_parser(subparsers):
     p.add_argument("--anchor-mm", type=ranged(float, -STROKE_LIMIT_MM, STROKE_LIMIT_MM), default=None,
                    help="force: where the fibre goes taut, mm (default 75 %% along the stroke: 45 of 0-60 mm)")
     p.add_argument("--no-flash", action="store_true", help="write the file but do not flash it")
-    p.add_argument("--fix", action="store_true", help="bringup: write and flash a corrected board file without asking")
     p.set_defaults(func=run)
+
+
+def add_guided_arguments(p, yes_help):
+    """The options of a guided run on a board, shared with `host experiment`: the board, the
+    reference sensor's scale, the force identification's rounds, bringup's fixes, --yes."""
+    p.add_argument("--port", default="auto", help=PORT_HELP)
+    add_uf2_argument(p)
+    p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports; sim: boards/sim.json)")
+    p.add_argument("--yes", action="store_true", help=yes_help)
+    p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
+    p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over its full scale, mm (real boards)")
+    p.add_argument("--rounds", type=ranged(int, 1, 20), default=DEFAULT.rounds, help="force: loading/unloading rounds (paper: 5; default %(default)s)")
+    p.add_argument("--fix", action="store_true", help="bringup: apply the board-file settings it recommends (wiring, "
+                   "directions, oversample for noisy pots): write the corrected board file and flash it, without asking")
 
 
 PAPER_METHOD = {"model": "bcm", "order": 3, "df_order": 4, "force_order": 2, "gauge_sides": "high", "no_friction": True}

@@ -2,8 +2,8 @@
 
 from pathlib import Path
 
-from host.commands._options import PORT_HELP, add_uf2_argument, ranged
-from host.commands.calibrate import DEFAULT, add_gauge_arguments, add_method_arguments, make_rig, method_options
+from host.commands._options import ranged
+from host.commands.calibrate import add_gauge_arguments, add_guided_arguments, add_method_arguments, make_rig, method_options
 from host.errors import DONE, MISSED, UserError
 from host.terminal import error, output
 
@@ -17,22 +17,13 @@ def add_parser(subparsers):
         "With --port sim everything runs on the virtual board (about 5 minutes); with --port sim:rp2040 on an emulated Pico.",
     )
     p.add_argument("name", choices=("paper",), help="which experiment set (paper)")
-    p.add_argument("--port", default="auto",
-                   help=PORT_HELP)
-    add_uf2_argument(p)
+    add_guided_arguments(p, yes_help="no questions (implied with --port sim and sim:rp2040)")
     p.add_argument("--out", required=True, metavar="DIR", help="report directory (report.md, PNGs, calibration files)")
-    p.add_argument("--board", default=None, help="board name or file (default: what the firmware reports)")
-    p.add_argument("--yes", action="store_true", help="no questions (implied with --port sim)")
     add_method_arguments(p)
     add_gauge_arguments(p)
-    p.add_argument("--ref-zero-mm", type=ranged(float, -1000, 1000), default=None, help="reference sensor: position at code 0, mm (real boards)")
-    p.add_argument("--ref-span-mm", type=ranged(float, 0.001, 10000), default=None, help="reference sensor: travel over full scale, mm (real boards)")
-    p.add_argument("--rounds", type=ranged(int, 1, 20), default=DEFAULT.rounds, help="force identification rounds (paper: 5; default %(default)s)")
     p.add_argument("--held-out-seed", type=ranged(int, 0, 2**31 - 1), default=None, metavar="N",
                    help="seed of the held-out positions and forces (default: drawn from the clock and printed; give "
                    "a run's seed from its results.json to repeat its targets)")
-    p.add_argument("--fix", action="store_true", help="apply the board-file settings bringup recommends (wiring, "
-                   "directions, oversample for noisy pots): write the corrected board file and flash it")
     p.set_defaults(func=run)
 
 
