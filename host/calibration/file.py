@@ -11,8 +11,9 @@ fsync'ed), so a crash or an error at any point leaves either the old file or the
 mix. CalibrationFile is the one way the host's commands change a file: each change is one such
 write of the whole document with the other sections kept, and it owns the rules of a change
 (new pot curves leave out what was measured through the old ones), the CRC and the dated copy of
-the file as it was. write_calibration alone makes a whole new document (tests, benches, the
-experiments' derived files).
+the file as it was (set_sections keeps it before its first write). write_calibration alone makes
+a whole new document, for files that are nobody's calibration: tests, benches, the experiments'
+derived variants in their output directory.
 """
 
 import dataclasses
@@ -229,7 +230,10 @@ class CalibrationFile:
         file's. Pot curves among `sections` leave out the end stops measured in the old curves'
         frame of positions (limits from them could sit past a stop); with `new_pots` (new pot
         curves, which a full calibration measures the rest through again) also Df, the force model
-        and the friction. `left_out` names what was left out. Returns the CRC the board checks."""
+        and the friction. `left_out` names what was left out. Returns the CRC the board checks.
+        The file as it was is kept first (keep_previous; once for this object): never a lost
+        calibration, whoever writes."""
+        self.keep_previous()
         try:
             doc = self.read() if self.exists() else new_document(board)
         except UserError:

@@ -50,9 +50,10 @@ def _calibration(out_dir, fit, sweep, say):
     if bits is None:
         return "raw does not look like ADC codes"
     try:
-        if path.exists():
-            path.unlink()  # a demo starts from nothing, never from an older run's sections
         cal = CalibrationFile(path)
+        if path.exists():  # a demo starts from nothing, never from an older run's sections: the old file kept aside
+            say("kept the previous calibration as %s" % cal.keep_previous())
+            path.unlink()
         crc = cal.set_sections(dict((pot, pot_section(fit, bits)) for pot in ("pot1", "pot2")))
     except UserError as exc:
         return str(exc)

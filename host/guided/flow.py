@@ -26,6 +26,7 @@ from host.calibration.file import CalibrationFile
 from host.errors import UserError
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.guided.checks import Limits
+from host.terminal import warn
 
 STEPS = ("pots", "assembly", "force")
 
@@ -275,11 +276,11 @@ def run_steps(session, rig, prompter, steps, opts, log=None):
         keep_previous()
         cal.set_sections(outcome.sections, board=board_name, new_pots=full)
         if full and cal.left_out:
-            prompter.say("  %s measured through the old pot curves: left out of %s (kept in the backup)"
-                         % (", ".join(cal.left_out), path))
+            warn("%s measured through the old pot curves: left out of %s (kept in %s)"
+                 % (", ".join(cal.left_out), path, cal.backup))
         elif cal.left_out:
-            prompter.say("  the end stops measured with the old pot curves are left out (the soft limits are the "
-                         "stroke parameters alone until a pots step measures them again)")
+            warn("the end stops measured with the old pot curves are left out of %s (the soft limits are the "
+                 "stroke parameters alone until a pots step measures them again)" % path)
         prompter.say("  wrote %s to %s" % (", ".join(outcome.sections), path))
         if opts.flash:
             session.flash(path)

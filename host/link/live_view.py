@@ -322,7 +322,7 @@ def watched(board, path, rate, live, work, close_stops=False, keep=False):
     from pathlib import Path
 
     from host.link.telemetry_plot import plot
-    from host.terminal import note
+    from host.terminal import warn
 
     display = live and not (sys.platform.startswith("linux") and not (os.environ.get("DISPLAY") or
                                                                       os.environ.get("WAYLAND_DISPLAY")))
@@ -331,7 +331,7 @@ def watched(board, path, rate, live, work, close_stops=False, keep=False):
                                          keep)
     png = None
     if live and (not display or (view or {}).get("headless")):
-        note("no display: a PNG of the run is written at the end instead of a live window%s"
+        warn("no display: a PNG of the run is written at the end instead of a live window%s"
              % (" (--keep: no window to keep)" if keep else ""))
         if summary.samples:
             png = plot(path, Path(path).with_suffix(".png"))

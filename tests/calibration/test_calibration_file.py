@@ -286,15 +286,30 @@ def test_new_pot_curves_leave_out_what_was_measured_through_the_old_ones(tmp_pat
 
 
 def test_new_pots_replace_an_unreadable_file_only_once_it_is_kept_aside(tmp_path):
+    """set_sections keeps the file as it was before it writes (whoever calls it); an unreadable
+    file is refused unless new pot curves replace it, and then it is in the dated copy."""
     path = tmp_path / "cal.json"
     path.write_text("not a calibration")
     cal = CalibrationFile(path)
     with pytest.raises(UserError):
-        cal.set_sections({"pot1": POT1}, new_pots=True)
-    backup = cal.keep_previous()
-    assert backup.read_text() == "not a calibration" and cal.keep_previous() is None  # once
+        cal.set_sections({"pot1": POT1})  # a section among the others: they cannot be read
+    assert cal.backup.read_text() == "not a calibration" and cal.keep_previous() is None  # kept, once
+    assert path.read_text() == "not a calibration"
     cal.set_sections({"pot1": POT1}, new_pots=True)
     assert cal.read()["pot1"]["fixed"] == POT1["fixed"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cal.json", cal.backup.name]
+
+
+def test_every_write_keeps_the_file_as_it_was(tmp_path):
+    """No caller has to remember the backup: the first write through a CalibrationFile keeps a
+    dated copy of a file that was there, and a new file makes none."""
+    path = tmp_path / "cal.json"
+    CalibrationFile(path).set_sections({"pot1": POT1})
+    assert [p.name for p in tmp_path.iterdir()] == ["cal.json"]
+    before = path.read_bytes()
+    cal = CalibrationFile(path)
+    cal.set_sections({"pot2": POT1})
+    assert cal.backup.read_bytes() == before and "pot2" in cal.read()
 
 
 def test_firmware_loader_under_micropython(tmp_path):

@@ -87,7 +87,7 @@ def _backups(path):
 
 
 @pytest.mark.parametrize("fail_at", ["pots", "assembly", "force"])
-def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at):
+def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, capsys, fail_at):
     before = old_file.read_bytes()
     _steps(monkeypatch, fail_at=fail_at)
     quiet = Quiet()
@@ -101,10 +101,11 @@ def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, fail_at
     now = read_calibration(old_file)
     assert now["pot1"]["pot_id"] == "pot1-new"  # the accepted pots were written
     # Df and force measured through the old curves went with them, unless re-measured here,
-    # and the person was told so
+    # and the person was told so, in a warning (never silenced) that names the copy
     assert ("df" in now) == (fail_at == "force") and "force" not in now
-    assert any("df, force, force_inverse, friction measured through the old pot curves" in line and "backup" in line
-               for line in quiet.said), quiet.said
+    warned = capsys.readouterr().err
+    assert "warning: df, force, force_inverse, friction measured through the old pot curves" in warned
+    assert "(kept in %s)" % backup in warned, warned
 
 
 def test_a_single_step_keeps_the_previous_file_and_changes_only_its_sections(old_file, monkeypatch):
