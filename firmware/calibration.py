@@ -56,6 +56,7 @@ STROKE_MAX_UM = 65535  # protocol.POSITION_LIMIT_UM (tested equal; this module s
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
 FF_DUTY_MAX = 5000  # half the duty range: a feed-forward beyond it would be a runaway, not friction
 LIMIT = 1 << 30
+SEGMENT_LIMIT = LIMIT - (1 << 15)  # a pwl segment's dx * |dy|: room left for the rounding offset
 MAX_BYTES = 65536  # the largest calibration file the board reads (ours are a few KB)
 PWL_VALUE_LIMIT = 1 << 29  # pwl_fixed sign-fixes knot values within [-2**29, 2**29)
 
@@ -153,7 +154,7 @@ def check_pwl(k, name="pwl"):
     while i < n:
         dx = x[i] - x[i - 1]
         _check(dx > 0, name, "knot codes must increase")
-        _check(dx * abs(y[i] - y[i - 1]) <= LIMIT - (1 << 15), name, "segment too long for 31 bits")
+        _check(dx * abs(y[i] - y[i - 1]) <= SEGMENT_LIMIT, name, "segment too long for 31 bits")
         i += 1
     _check(x[0] >= 0 and x[n - 1] <= 1 << 16, name, "knot codes outside the ADC range")
     _check(-PWL_VALUE_LIMIT <= min(y) and max(y) < PWL_VALUE_LIMIT, name, "knot values beyond 2**29 um")

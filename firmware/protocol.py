@@ -72,6 +72,8 @@ PARAMS = (
 )
 PARAM_NAMES = tuple(row[0] for row in PARAMS)
 
+T_US_WRAP = 1 << 30  # the records' t_us (and the step counter) wrap here: 31-bit small ints on every board
+
 # The telemetry record: RECORD_WORDS int32 words, in this order (firmware/telemetry.py's ring)
 FIELDS = (
     "t_us",  # loop time since start, us (step count x period, wraps at 2**30)

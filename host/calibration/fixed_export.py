@@ -18,9 +18,9 @@ import math
 import numpy as np
 
 from firmware import bcm_fixed, poly_fixed, pwl_fixed
+from firmware.calibration import LIMIT, SEGMENT_LIMIT  # the firmware's own bounds: one definition
 from host.fitting.rational_bezier import evaluate as bcm_float  # the float64 reference curve
 
-LIMIT = 2**30  # the 31-bit small-int range of a 32-bit MicroPython port
 UM_PER_MM = 1000.0
 
 
@@ -187,7 +187,6 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
 
 # ---------------------------------------------------------------- piecewise-linear tables
 
-SEGMENT_LIMIT = 2**30 - 2**15  # dx * |dy| per segment, leaves room for the rounding offset
 
 
 def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM, reference=None):

@@ -12,7 +12,7 @@ from firmware import protocol as P
 
 NO_DATA_S = 3.0  # wall-clock seconds without a telemetry record: the board stopped streaming
 _T_COL = P.FIELDS.index("t_us")
-_T_WRAP = 1 << 30  # the firmware's t_us wraps here
+_T_WRAP = P.T_US_WRAP
 _T_JUMP_US = 10000000  # a step this long is a restart of the firmware's clock, not time
 
 

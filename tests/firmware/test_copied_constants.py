@@ -54,6 +54,13 @@ def test_the_fault_bits_are_the_interface_tables():
         assert _value("safety", "FAULT_" + name.upper()) == bit, name
 
 
+def test_the_wrap_and_the_record_size_are_the_interface_tables():
+    from firmware.protocol import T_US_WRAP
+
+    assert _value("controller", "_MASK") == T_US_WRAP - 1  # [wrap]: t_us, steps, tick differences
+    assert _value("telemetry", "RECORD_WORDS") == len(FIELDS)  # the ring's record is the table's
+
+
 def test_the_record_slots_follow_the_telemetry_fields():
     assert sorted(RECORD.values()) == sorted(FIELDS)  # every field has its slot
     for name, field in RECORD.items():

@@ -46,7 +46,7 @@ def test_table_matches_float_interpolation_at_every_code(table):
     x_knots, y_knots = k[2 : 2 + n], k[2 + n :]
     assert all(b > a for a, b in zip(x_knots, x_knots[1:]))
     for i in range(n - 1):  # the 31-bit product bound the firmware relies on
-        assert (x_knots[i + 1] - x_knots[i]) * abs(y_knots[i + 1] - y_knots[i]) <= 2**30 - 2**15
+        assert (x_knots[i + 1] - x_knots[i]) * abs(y_knots[i + 1] - y_knots[i]) <= SEGMENT_LIMIT
 
 
 def test_knots_are_exact_and_ends_clamp():
@@ -95,7 +95,7 @@ def test_cpython_and_micropython_agree_on_many_tables():
     assert evaluate_on_micropython("pwl_fixed", "pwl", cases, inputs) == expected
 
 
-SEGMENT_LIMIT = 2**30 - 2**15  # the product bound of every segment (firmware.calibration.check_pwl)
+from firmware.calibration import SEGMENT_LIMIT  # noqa: E402  (the product bound of every segment, check_pwl)
 
 
 @st.composite
