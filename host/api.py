@@ -46,7 +46,7 @@ class Settled:
     seconds: float
     last: dict = field(default_factory=dict)
     faults: list = field(default_factory=list)
-    stroke_end: str = None  # not reached, and the block is at this stroke end ("0 mm", "60 mm")
+    stroke_end: str = None  # not reached, and the block is at the soft stroke limit of this end ("0.5 mm", "59.5 mm")
     cause: str = None  # not reached: why, as far as the board's last record tells (why_not_settled)
 
     def as_dict(self):
@@ -176,7 +176,7 @@ class Board:
 
     def move(self, to_mm, tolerance_mm=0.2, timeout_s=15.0, hold=False, progress=None):
         """Closed-loop position move of the output block to `to_mm` (inside the soft stroke limits,
-        0.5-59.5 mm on a 0-60 mm actuator), until D2 stays within
+        stroke_limits_um(): 0.5-59.5 mm on a 0-60 mm actuator), until D2 stays within
         `tolerance_mm` for 0.3 s of board time or `timeout_s` of it passed; motor off after unless
         `hold`. `progress(mm, seconds)` is called about 5 times a second of board time."""
         self._needs_calibration("a move")
@@ -206,16 +206,16 @@ class Board:
         return self.client.call("status").get("stroke_um") or [-P.POSITION_LIMIT_UM, P.POSITION_LIMIT_UM]
 
     def stroke_end(self, d2_um):
-        """'0 mm' or '60 mm' when D2 is inside the soft stroke limit's slow zone at that end, else None."""
+        """The soft stroke limit D2 is at ("0.5 mm", "59.5 mm" on a 0-60 mm actuator): inside its slow
+        zone at that end; else None."""
         try:
             lo, hi = self.stroke_limits_um()
             zone = self.client.call("get", "slow_zone_um")
         except BoardError:  # a firmware without soft stroke limits
             return None
-        if d2_um <= lo + zone:
-            return "0 mm"
-        if d2_um >= hi - zone:
-            return "60 mm"
+        for limit, near in ((lo, d2_um <= lo + zone), (hi, d2_um >= hi - zone)):
+            if near:
+                return "%g mm" % (limit / 1000.0)
         return None
 
     # -- telemetry ---------------------------------------------------------------------

@@ -15,7 +15,7 @@ EXIT_STATUSES = ((DONE, "done"),
                           "not settled, no gain set settled, nothing accepted, a calibration or experiment stopped "
                           "partway)"),
                  (USER_ERROR, "the input or the setup, one line saying what to fix (a bad option, file or port, a "
-                              "lost board, a check that refused)"),
+                              "board lost before anything was measured, a check that refused)"),
                  (INTERRUPTED, "Ctrl-C"), (CLOSED_PIPE, "the output's reader went away (| head)"))
 
 

@@ -289,9 +289,12 @@ PHASES = (("calibration", PaperRun.calibration), ("held-out Df", PaperRun.held_o
           ("held-out force steps", PaperRun.held_out_forces))
 
 
-def run_paper(session, rig, prompter, opts, out_dir, say=print, results=None, held_out_seed=None):
+def run_paper(session, rig, prompter, opts, out_dir, say=None, results=None, held_out_seed=None):
     """Every phase in order, each one's figures stored and results.json saved after it (a run that
-    stops keeps what it measured); then the report. Returns (report path, results)."""
+    stops keeps what it measured); then the report. Returns (report path, results). `say(text)`:
+    its progress lines (default: the terminal's note, on stderr)."""
+    if say is None:
+        from host.terminal import note as say
     t0 = time.monotonic()
     results = {} if results is None else results
     run = PaperRun(session, rig, prompter, opts, out_dir, say, held_out_seed)
