@@ -77,6 +77,8 @@ class BoardPort:
                     raise UserError("a load can be hooked only on a virtual board (port sim); on a bench, hook it by hand")
                 self.virtual.set_load(self.load)
             return self
+        if self.calibration is not None and not Path(self.calibration).is_file():  # for either board started here
+            raise UserError("calibration file not found: %s" % self.calibration)
         if chip == "rp2040":
             return self._open_pico()
         from host.link.flashing import resolve_board
@@ -85,8 +87,6 @@ class BoardPort:
         board_path, board = resolve_board(self.board or str(DEFAULT_BOARD))
         if not board.get("simulated"):
             raise UserError("a virtual board needs a simulated board file, not %s" % board_path)
-        if self.calibration is not None and not Path(self.calibration).is_file():
-            raise UserError("calibration file not found: %s" % self.calibration)
         calibration = self.calibration
         if calibration is None and self.ready and self.factory:
             calibration = ready_calibration(board_path)
@@ -102,8 +102,6 @@ class BoardPort:
         board_path, board = resolve_board(self.board or str(default_board(self.uf2)))
         if board.get("mcu") != "RP2040":
             raise UserError("an emulated Pico runs an RP2040 board file, not %s (mcu %s)" % (board_path, board.get("mcu")))
-        if self.calibration is not None and not Path(self.calibration).is_file():
-            raise UserError("calibration file not found: %s" % self.calibration)
         say = self.progress or _note
         self.virtual = EmulatedPico(uf2=self.uf2, board=board_path, actuator=self.actuator or SIM_BOARD,
                                     flash_image=self.flash_image, load=self.load, log=say)
