@@ -30,7 +30,7 @@ def run(args):
     if outcome.value is None:
         raise UserError("no telemetry from the board during the force run")
     if not outcome.reached and outcome.stroke_end and not outcome.faults:  # the usual mistake, in its own words
-        outcome.cause = ("the block ran to D2 = %.1f mm, at the %s stroke end: nothing to push against? hook a load "
+        outcome.cause = ("the block ran to D2 = %.1f mm, at the soft stroke limit (%s): nothing to push against? hook a load "
                          "(--port sim: --load gauge)" % (outcome.last["d2_um"] / 1000, outcome.stroke_end))
     report(args, outcome, summary, png, "%s at %.3f N (target %.3f N) after %.2f s%s" % (
         "reached" if outcome.reached else "NOT settled", outcome.value, args.target, outcome.seconds,

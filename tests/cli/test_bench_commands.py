@@ -92,7 +92,8 @@ def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, c
     assert code == 1
     lines = [line for line in captured.out.split("\n") if line.strip()]
     assert len(lines) == 1 and lines[0].startswith("NOT settled at ") and "(target -5.000 N)" in lines[0]
-    assert "at the 0 mm stroke end: nothing to push against? hook a load (--port sim: --load gauge)" in lines[0]
+    # the limit it stopped at is the one in force (0.5 mm inside boards/sim.json's 0-60 mm), not a made-up end
+    assert "at the soft stroke limit (0.5 mm): nothing to push against? hook a load (--port sim: --load gauge)" in lines[0]
 
 
 def test_a_move_held_back_by_a_load_says_the_motor_is_at_its_duty_limit(calibration, capsys):
