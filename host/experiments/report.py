@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from host.experiments import displacement, model_compare
+from host.guided.stroke import DEFAULT_MM  # a run's results without a stroke: the 0-60 mm actuator's
 
 TARGETS = {  # judged on the held-out figures (host/experiments/held_out.py) when the run has them
     "displacement_mm": 0.1,  # max |error| after calibration over 1-59 mm
@@ -44,7 +45,7 @@ def headline(r):
 def ran_to_the_end(run, stroke_mm=None):
     """A no-load force run did not block: it ended within TARGETS["blocking_margin_mm"] of the
     stroke's end its force drives toward (the high end for a positive force)."""
-    lo, hi = stroke_mm or (0.0, 60.0)
+    lo, hi = stroke_mm or DEFAULT_MM
     margin = TARGETS["blocking_margin_mm"]
     return run["final"] >= hi - margin if run["target_n"] > 0 else run["final"] <= lo + margin
 
@@ -178,7 +179,7 @@ def _summary_section(add, r):
     add("| BCM vs PCM (Fig. 3a) | BCM-3 ~ PCM-10 | BCM-3 objective %s; PCM needs order %s to match | - |" % (
         _f(bcm3, 2), match if match else "> %d" % max(x["order"] for x in rows3)))
     ok = judged(h, r)
-    lo, hi = r.get("stroke_nominal_mm") or (0.0, 60.0)
+    lo, hi = r.get("stroke_nominal_mm") or DEFAULT_MM
     span = "%g-%g" % (min(x["target"] for x in r["fig7"]["after"]), max(x["target"] for x in r["fig7"]["after"])) if r["fig7"]["after"] else "-"
     hdf, hpos = h["held_out_df_mm"], h["held_out_displacement_mm"]
     add("| Df calibration (Fig. 5) | peak 4.9 -> 0.9 mm (-81.6 %%) | peak %s -> %s mm of 1 mm bin means on the sweep it "
@@ -288,7 +289,7 @@ def _fig7_section(add, r):
                                                   _f(a.get("settle_s"), 2)))
     add("")
     zero = r["fig7"].get("reference_zero")
-    lo, hi = r.get("stroke_nominal_mm") or (0.0, 60.0)
+    lo, hi = r.get("stroke_nominal_mm") or DEFAULT_MM
     add("Max |error| over %s mm: %s mm before, %s mm after. Paper: 14.4 -> 4.2 mm. The reference sensor measures "
         "pot 2's wiper travel (as on the paper's rig), so pot 2's mounting error is not in these errors. Positions are "
         "measured from the block's end stops, whose middle is %g mm, by the calibration and by this experiment alike%s. "
@@ -302,7 +303,7 @@ def _fig7_section(add, r):
 
 
 def _fig8_section(add, r):
-    lo, hi = r.get("stroke_nominal_mm") or (0.0, 60.0)
+    lo, hi = r.get("stroke_nominal_mm") or DEFAULT_MM
     blocking = r["fig8"]
     add("## Fig. 8: force control at no load from D2 = %g mm" % ((lo + hi) / 2))
     add("")

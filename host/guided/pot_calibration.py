@@ -61,7 +61,7 @@ def stroke_from(ends, offset_mm, pot2_section):
                                    "length_mm": hi - lo})
 
 
-def manual_sweep(session, rig, pot, points, prompter, say, length_mm=60.0):
+def manual_sweep(session, rig, pot, points, prompter, say, length_mm):
     """Stop at `points` places each way over a `length_mm` stroke (short open-loop pushes) and ask
     the dial gauge."""
     rig.mount_reference(pot)
