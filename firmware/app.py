@@ -10,7 +10,6 @@ work; closed-loop modes are refused with the reason, and status() shows it.
 
 import sys
 import time
-from array import array
 
 from firmware import hal
 from firmware.controller import EF, FORCE, IDLE, OPEN_LOOP, PARKED, POSITION, Controller
@@ -18,16 +17,14 @@ from firmware.measurement import STROKE_CLAMP_UM, Measurement, board_problem
 from firmware.motor import Motor
 from firmware.portable import release
 from firmware.pi_control import DUTY_MAX
-from firmware.protocol import MODES, PARAMS, PROTOCOL_VERSION, VERSION, interface_hash
+from firmware.param_table import ParamTable, index as param_index
+from firmware.protocol import MODES, PROTOCOL_VERSION, VERSION, interface_hash
 from firmware.safety import FAULT_HOST_TIMEOUT, FAULT_INTERRUPTED, FAULT_RUN_EXCEPTION, FAULT_SOFT_RESET, Safety
 from firmware.sampler import Sampler
-from firmware import saved_params
 from firmware.telemetry import Ring
 
 FORCE_TARGET_MAX_MN = 200000  # 200 N, far beyond the actuator; keeps poly() inputs bounded
 EXIT_TEXT_MAX = 200
-STROKE_INSET_UM = 500  # the soft stroke limits' default distance inside the board file's stroke_mm
-PER_STEP_PARAMS = ("ki_pos", "ki_force", "defl_rate_um")  # what a step adds: scaled up below 1 kHz
 # The main loop's passes (link, host watchdog) are at most this far apart when there is nothing
 # to do. A pass costs about 0.2 ms of an RP2040; run at every interrupt (the step's, USB's), as
 # the emulated Pico showed (docs/emulated-pico.md), passes kept its CPU about 70 % busy at rest.
@@ -138,42 +135,9 @@ class App:
         if cal is not None:
             self.set_calibration(cal)
         self.step = self.ctrl.step  # the bound method made once, before any heap lock / IRQ
-        self.params_record = params_record
-        # The board's defaults: the table's, with the soft stroke limits 0.5 mm inside the board
-        # file's "stroke_mm" when it has one (the table's 0.5/59.5 mm are a 0-60 mm actuator's)
-        self.defaults = array("i", [row[1] for row in PARAMS])
-        stroke = self.board.get("stroke_mm")
-        if stroke is not None:
-            self.defaults[self._param_index("stroke_min_um")] = int(round(stroke[0] * 1000)) + STROKE_INSET_UM
-            self.defaults[self._param_index("stroke_max_um")] = int(round(stroke[1] * 1000)) - STROKE_INSET_UM
-        # The table's gains and ramps are per step, tuned at 1 kHz: a board that steps slower gets
-        # the same per second (CircuitPython's 250 Hz; docs/circuitpython.md), within each's limit
-        loop_hz = self.board["loop_hz"]
-        if loop_hz < 1000:
-            for name in PER_STEP_PARAMS:
-                i = self._param_index(name)
-                self.defaults[i] = min(PARAMS[i][3], (self.defaults[i] * 1000 + loop_hz // 2) // loop_hz)
-        for i in range(len(PARAMS)):
-            self.ctrl.p[i] = self.defaults[i]
-        saved, self.params_file_error = saved_params.load(params_record, PARAMS)
-        lo_i, hi_i = self._param_index("stroke_min_um"), self._param_index("stroke_max_um")
-        lo, hi = saved.get(lo_i, self.defaults[lo_i]), saved.get(hi_i, self.defaults[hi_i])
-        if lo >= hi:  # each in its range, but no position between them: every move would be refused
-            self.params_file_error = "%s unusable: stroke_min_um %d not below stroke_max_um %d" % (params_record.name, lo, hi)
-            saved = {}
-        self.params_from_file = bool(saved)
-        for i in saved:
-            self.ctrl.p[i] = saved[i]
+        # the parameters in force (the saved ones, else this board's defaults) and where each came from
+        self.params_table = ParamTable(self.ctrl.p, self.board, params_record)
         self.ctrl.apply_params()
-        # What every parameter is at boot (the saved values, else the board's defaults): a host
-        # that goes silent gets them back (watch_host)
-        self.boot_params = array("i", self.ctrl.p)
-        # Temporary values (`set NAME VALUE temp`: what a host command changes for itself, such
-        # as the stroke limits a sweep opens or the gains a tuning run tries): which parameters
-        # hold one, how many, and what each was before, restored when the host goes silent
-        self.temporary = array("b", bytes(len(PARAMS)))
-        self.n_temporary = 0
-        self.before_temporary = array("i", self.ctrl.p)
         self.params_restored = None
         self._timeout_restored = False  # the parameters came back for the host_timeout latched now
         self._timer = None
@@ -233,11 +197,11 @@ class App:
             "period_us": self.ctrl.period_us,
             "stroke_um": self.ctrl.stroke_limits,
             "end_stops_um": None if self.ctrl.end_stops is None else list(self.ctrl.end_stops),
-            "params_changed": self.params_changed(),
-            "params_saved": self.params_saved(),
-            "params_file_error": self.params_file_error,
+            "params_changed": self.params_table.changed_names(),
+            "params_saved": self.params_table.saved(),
+            "params_file_error": self.params_table.file_error,
             "params_restored": self.params_restored,
-            "params_temporary": self.params_temporary(),
+            "params_temporary": self.params_table.temporary_names(),
             "timer": self.timer_kind,
             "interpreter": self.interpreter,
             "mpy": self.mpy,
@@ -318,82 +282,26 @@ class App:
     def params(self):
         """The parameter table with the values in force: [name, value, default, min, max, unit]
         (the default is this board's: the table's, or from its board file's stroke)."""
-        p = self.ctrl.p
-        d = self.defaults
-        return [[row[0], p[i], d[i], row[2], row[3], row[4]] for i, row in enumerate(PARAMS)]
-
-    def params_saved(self):
-        """{name: value} the board booted with that differ from its defaults; None when no saved
-        parameters were loaded."""
-        if not self.params_from_file:
-            return None
-        b = self.boot_params
-        d = self.defaults
-        return dict((row[0], b[i]) for i, row in enumerate(PARAMS) if b[i] != d[i])
+        return self.params_table.rows()
 
     def save_params(self):
         """Keep the parameters in force on the board (loaded at the next boot). Idle only: a
         flash write may hold up the control step."""
-        if self.params_record is None:
-            raise ValueError("this board has no place for saved parameters")
         if self.ctrl.mode != IDLE:
             raise ValueError("stop first: parameters are saved only while idle")
         self.safety.heard()
-        saved_params.save(self.params_record, PARAMS, self.ctrl.p)
-        self.params_file_error = None
-        self.params_from_file = True
-        p = self.ctrl.p
-        for i in range(len(p)):
-            self.boot_params[i] = p[i]  # what the watchdog restores from now on
-            if self.temporary[i]:  # saved for good now
-                self.temporary[i] = 0
-        self.n_temporary = 0
-        return {"file": self.params_record.name, "saved": self.params_saved()}
-
-    def _param_index(self, name):
-        for i, row in enumerate(PARAMS):
-            if row[0] == name:
-                return i
-        raise ValueError("unknown parameter %r" % (name,))
+        return self.params_table.save()
 
     def get_param(self, name):
         self.safety.heard()
-        return self.ctrl.p[self._param_index(name)]
+        return self.ctrl.p[param_index(name)]
 
     def set_param(self, name, value, temporary=False):
         """Set a parameter; `temporary`: for the host command that sets it only, so it goes back
-        to the value it had before when the host goes silent (watch_host). A value set without
-        `temporary` stays, and ends any temporary value of that parameter."""
-        i = self._param_index(name)
-        value = int(value)
-        lo, hi = PARAMS[i][2], PARAMS[i][3]
-        if not lo <= value <= hi:
-            raise ValueError("%s must be within %d..%d" % (name, lo, hi))
-        if name == "stroke_min_um" or name == "stroke_max_um":  # the pair must leave room to move
-            other = self.ctrl.p[self._param_index("stroke_max_um" if name == "stroke_min_um" else "stroke_min_um")]
-            if (value >= other) if name == "stroke_min_um" else (value <= other):
-                raise ValueError("%s %d would leave no stroke: it must be %s stroke_%s_um (%d)" % (
-                    name, value, "below" if name == "stroke_min_um" else "above",
-                    "max" if name == "stroke_min_um" else "min", other))
+        to the value it had before when the host goes silent (watch_host)."""
+        self.params_table.set(name, value, temporary)
         self.safety.heard()
-        if temporary and not self.temporary[i]:
-            self.before_temporary[i] = self.ctrl.p[i]
-            self.temporary[i] = 1
-            self.n_temporary += 1
-        elif not temporary and self.temporary[i]:
-            self.temporary[i] = 0
-            self.n_temporary -= 1
-        self.ctrl.p[i] = value
         self.ctrl.apply_params()
-
-    def params_temporary(self):
-        """Names of the parameters that hold a temporary value."""
-        return [PARAMS[i][0] for i in range(len(PARAMS)) if self.temporary[i]]
-
-    def params_changed(self):
-        """Names of the parameters that differ from their boot values."""
-        p = self.ctrl.p
-        return [PARAMS[i][0] for i in range(len(PARAMS)) if p[i] != self.boot_params[i]]
 
     def watch_host(self):
         """Main loop, every pass: what the host changed comes back by itself when it goes silent.
@@ -406,30 +314,20 @@ class App:
         while its person reads a dial gauge, leaves nothing open either. Values set for good
         stay while the board is idle, so a host tuning by hand keeps its settings."""
         sf = self.safety
-        p = self.ctrl.p
-        temp = self.temporary
+        table = self.params_table
         if sf.faults & FAULT_HOST_TIMEOUT:
             if self._timeout_restored:
                 return False
             self._timeout_restored = True
-            changed = self.params_changed()
-            back = self.boot_params
+            changed = table.restore(to_boot=True)
             what = "back to boot values"
         else:
             self._timeout_restored = False
             limit = sf.silence_limit
-            if not self.n_temporary or not limit or sf.silence < limit:
+            if not table.n_temporary or not limit or sf.silence < limit:
                 return False
-            changed = self.params_temporary()
-            back = self.before_temporary
+            changed = table.restore(to_boot=False)
             what = "(temporary) back to their values before"
-        i = 0
-        while i < len(p):
-            if temp[i] or back is self.boot_params:
-                p[i] = back[i]
-            temp[i] = 0
-            i += 1
-        self.n_temporary = 0
         if not changed:
             return False
         self.ctrl.apply_params()

@@ -55,7 +55,7 @@ BREAKS = [
   "        if not table[i][2] <= value <= table[i][3]:", "        if False:",
   ["tests/link/test_params.py"]),
  ("temporary values are not restored when the host goes silent while idle", "firmware/app.py",
-  "            if not self.n_temporary or not limit or sf.silence < limit:", "            if True:"),
+  "            if not table.n_temporary or not limit or sf.silence < limit:", "            if True:"),
  ("after a watchdog trip the boot values are restored on every pass, not once", "firmware/app.py",
   "            if self._timeout_restored:\n                return False", "            if False:\n                return False"),
  ("a calibration's board and ADC width are checked only after its codes are scanned", "firmware/app.py",

@@ -20,7 +20,7 @@ except ImportError:
 MODULES = (
     "portable", "hal", "board_config", "sampler", "bcm_fixed", "pwl_fixed", "poly_fixed",
     "calibration", "measurement", "pi_control", "motor", "safety", "telemetry", "controller",
-    "protocol", "link", "records", "saved_params", "app", "board_main",
+    "protocol", "link", "records", "saved_params", "param_table", "app", "board_main",
 )
 # ... but these, which import what only one runtime has (run on the emulated CircuitPython Pico
 # by tests/link/test_emulated_circuitpython.py)
@@ -881,5 +881,5 @@ def case_stroke_limits_must_leave_a_stroke(path, params_path, junk_path):
     saved_params.save(record(params_path), PARAMS, values)
     booted = App("boards/sim.json", None, machine=machine, params_record=record(params_path))
     junk = App("boards/sim.json", None, machine=machine, params_record=record(junk_path))
-    return {"refused": len(refused), "first": refused[0], "file_error": booted.params_file_error,
-            "stroke": booted.status()["stroke_um"], "junk_error": junk.params_file_error}
+    return {"refused": len(refused), "first": refused[0], "file_error": booted.status()["params_file_error"],
+            "stroke": booted.status()["stroke_um"], "junk_error": junk.status()["params_file_error"]}

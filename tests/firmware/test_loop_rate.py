@@ -6,7 +6,8 @@ above they are the table's."""
 import json
 
 from boards.sim.machine import for_board
-from firmware.app import PER_STEP_PARAMS, App
+from firmware.app import App
+from firmware.param_table import PER_STEP_PARAMS
 from firmware.calibration import load_calibration
 from firmware.measurement import FS_SHIFT
 from firmware.protocol import PARAMS

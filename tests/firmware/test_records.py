@@ -99,7 +99,7 @@ def test_the_app_keeps_its_parameters_and_exit_cause_in_nvm(monkeypatch):
     assert app.save_params() == {"file": "nvm:params.txt", "saved": {"slew": 300}}
     app._record_exit("interrupted: KeyboardInterrupt")
     again = boot()
-    assert again.get_param("slew") == 300 and again.params_saved() == {"slew": 300}
+    assert again.get_param("slew") == 300 and again.status()["params_saved"] == {"slew": 300}
     assert again.last_exit.startswith("interrupted: KeyboardInterrupt")
 
 
