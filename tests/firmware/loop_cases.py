@@ -58,7 +58,7 @@ class RecordingMachine(ReplayMachine):
 
 
 class _PybTimer:
-    """pyb.Timer: PWM channels for the bridge (as app_cases._PybTimer) and the loop timer."""
+    """pyb.Timer: PWM channels for the bridge (as drive_cases._PybTimer) and the loop timer."""
 
     PWM = 2
 

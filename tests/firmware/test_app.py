@@ -1,28 +1,19 @@
-"""The App's cases (tests/firmware/app_cases.py), each run under CPython and MicroPython."""
+"""The App's cases (tests/firmware/app_cases.py), each run under CPython and MicroPython: every
+module imports, the step allocates nothing under heap_lock, the telemetry ring, the board files,
+and what the App does with the calibration it finds; also the main loop's rest between passes
+(CPython) and board_main's recovery of a calibration an interrupted install left aside
+(MicroPython). The safety rules are in test_app_safety.py, the drive path in test_drive.py, the
+parameters in test_params_on_both.py; the replay data (data_path, bcm3_data_path) is made in
+tests/firmware/conftest.py."""
 
 import pytest
 
-from testkit import interpreters, model
 from testkit.interpreters import REPO, run_micropython
 from tests.firmware import app_cases
+from tests.firmware.on_both import runner
 
 CASES = "tests.firmware.app_cases"
-
-
-@pytest.fixture(scope="module")
-def data_path(tmp_path_factory):
-    """ADC codes recorded from the simulated actuator, with its model calibration (pwl pots)."""
-    return model.write_replay_data(tmp_path_factory.mktemp("fw"), steps=600, duty=3000)
-
-
-@pytest.fixture(scope="module")
-def bcm3_data_path(tmp_path_factory):
-    """The same recording with the pots as the paper's BCM-3 (bcm3 words)."""
-    return model.write_replay_data(tmp_path_factory.mktemp("fw_bcm3"), steps=600, duty=3000, pots="bcm3")
-
-
-def both(call, data_path=None):
-    return interpreters.both(CASES, call.replace("PATH", repr(data_path)))
+both = runner(CASES)
 
 
 def test_every_module_imports_on_both():
@@ -46,58 +37,6 @@ def test_step_allocates_nothing_under_heap_lock(request, pots, mode, target):
         assert here["pots"] == there["pots"] == [pots, pots]
 
 
-@pytest.mark.parametrize("pot", ["pot1", "pot2"])
-def test_wiper_lift_stops_motor_within_one_period(data_path, pot):
-    here, there = both("case_rail_fault(PATH, %r)" % pot, data_path)
-    assert here == there
-
-
-def test_host_silence_stops_motor(data_path):
-    here, there = both("case_host_timeout(PATH)", data_path)
-    assert "50 ms" in here["fault"] and here == there
-
-
-def test_exception_in_step_leaves_pwm_zero(data_path):
-    here, there = both("case_step_exception(PATH)", data_path)
-    assert "OSError" in here["fault"] and "OSError" in there["fault"]
-
-
-def test_stop_turns_the_bridge_off_at_once(data_path):
-    """App.stop (what the `stop` command and every exit call) leaves both PWM outputs at 0 before
-    the next control step, not only the duty the next step would write."""
-    here, there = both("case_stop_turns_the_bridge_off(PATH)", data_path)
-    assert here == there and here["running"] > 0
-
-
-def test_the_motor_clamps_both_directions(data_path):
-    """The motor's own clamp, the last line before the bridge: +-20000 asked, +-10000 (full
-    scale, 65535) written, on both interpreters (viper on MicroPython)."""
-    here, there = both("case_motor_clamps(PATH)", data_path)
-    assert here == there == {"duty": [10000, -10000], "u16": [65535, 65535]}
-
-
-def test_the_position_loop_output_stays_within_out_limit_with_feed_forward(data_path, tmp_path):
-    """Position mode with a friction feed-forward (the friction section's ff_duty) and the PI
-    saturated: PI output plus the feed-forward is clamped to +-out_limit in both directions."""
-    ff = tmp_path / "ff.json"
-    model.write_model_calibration(ff, feed_forward=True)
-    here, there = both("case_position_output_clamp(PATH, %r)" % str(ff), data_path)
-    assert here == there
-    assert here["ff_duty"] > 0 and here["duty"] == [here["out_limit"], -here["out_limit"]], here
-
-
-def test_board_main_stops_the_motor_whatever_escapes_the_app(data_path):
-    """board_main.run's last line of defence: an App.run that ends by an exception with the bridge
-    still driven (its own shutdown failed or was bypassed) leaves it off once run returns."""
-    here, there = both("case_board_main_stops_what_run_left_running(PATH)", data_path)
-    assert here == there and here["during"] > 0 and here["after"] == [0, 0]
-
-
-def test_keyboard_interrupt_in_run_leaves_pwm_zero(data_path):
-    here, there = both("case_keyboard_interrupt(PATH)", data_path)
-    assert here["duty_seen"] > 0 and here == there
-
-
 def test_closed_loop_refused_without_calibration(data_path):
     here, there = both("case_refused_without_calibration(PATH)", data_path)
     assert here == there
@@ -105,21 +44,6 @@ def test_closed_loop_refused_without_calibration(data_path):
 
 def test_load_force_is_a_play_operator_of_the_block_friction(data_path):
     here, there = both("case_load_force_play(PATH)", data_path)
-    assert here == there
-
-
-def test_slew_limit(data_path):
-    here, there = both("case_slew(PATH)", data_path)
-    assert here == there
-
-
-def test_pi_anti_windup():
-    here, there = both("case_anti_windup()")
-    assert here == there
-
-
-def test_motor_wiring_two_drivers():
-    here, there = both("case_motor_wiring()")
     assert here == there
 
 
@@ -131,31 +55,6 @@ def test_telemetry_ring():
 def test_board_files_load_and_broken_ones_are_explained():
     here, there = both("case_board_files()")
     assert here == there and here["boards"] == ["pico", "esp32_devkitc", "pyboard", "sim"]
-
-
-def test_pyboard_pwm_adapter():
-    here, there = both("case_pyboard_pwm_adapter()")
-    assert here == there
-
-
-def test_watchdog_stops_every_motion_mode(data_path):
-    here, there = both("case_watchdog_in_every_motion_mode(PATH)", data_path)
-    assert here == there
-
-
-def test_every_command_counts_as_hearing_the_host(data_path):
-    here, there = both("case_commands_count_as_hearing_the_host(PATH)", data_path)
-    assert here == there
-
-
-def test_targets_and_parameters_out_of_range_are_refused(data_path):
-    here, there = both("case_range_checks(PATH)", data_path)
-    assert here == there
-
-
-def test_a_silent_host_gets_the_boot_parameters_back(data_path):
-    here, there = both("case_host_silence_restores_params(PATH)", data_path)
-    assert here == there and here["restored_at"] == 50
 
 
 def test_the_board_boots_whatever_calibration_file_it_finds(tmp_path):
@@ -262,11 +161,6 @@ def test_a_calibration_whose_evaluation_fails_leaves_the_board_running_without_i
     app.set_mode("open_loop")
 
 
-def test_temporary_parameters_come_back_when_the_host_goes_silent(data_path):
-    here, there = both("case_temporary_params_come_back_when_the_host_goes_silent(PATH)", data_path)
-    assert here == there
-
-
 def test_the_main_loop_rests_between_passes_until_input_or_its_pass_is_due(monkeypatch):
     """App.run's rest: idle() (a board's sleep until its next interrupt) until PASS_MS after the
     pass, cut short by input. A pass costs ~0.2 ms of an RP2040: run at every interrupt, the
@@ -290,18 +184,3 @@ def test_the_main_loop_rests_between_passes_until_input_or_its_pass_is_due(monke
     del wakes[:]
     app_module._rest(idle, None)
     assert len(wakes) == 1  # a link that cannot say (a test's): one idle() per pass, as before
-
-
-def test_stroke_limits_must_leave_a_stroke(data_path, tmp_path):
-    """Inverted soft limits (each within its range) were accepted by `set` and from params.txt, and
-    every later move was then refused; a random params.txt was refused with a blank reason."""
-    junk = tmp_path / "junk.txt"
-    junk.write_bytes(bytes(range(128, 256)) * 8)
-    call = "case_stroke_limits_must_leave_a_stroke(PATH, %r, %r)"
-    here = interpreters.on_cpython(CASES, call.replace("PATH", repr(data_path)) % (str(tmp_path / "a.txt"), str(junk)))
-    there = interpreters.on_micropython(CASES, call.replace("PATH", repr(data_path)) % (str(tmp_path / "b.txt"), str(junk)))
-    for out in (here, there):
-        assert out["refused"] == 4 and "would leave no stroke" in out["first"], out
-        assert "stroke_min_um 40000 not below stroke_max_um 30000" in out["file_error"], out
-        assert out["stroke"] == [500, 59500], out
-        assert out["junk_error"].split("unusable:")[1].strip(), out

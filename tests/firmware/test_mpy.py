@@ -37,11 +37,11 @@ def test_compiled_x64_modules_import_and_run(tmp_path):
     # The first `firmware` package is the compiled one, and __file__ proves where it came from.
     proc = run_micropython(
         PREFER_EXTRA_PATHS +
-        "from testkit.exact import emit\nfrom tests.firmware import app_cases\nimport firmware.app, firmware.controller\n"
+        "from testkit.exact import emit\nfrom tests.firmware import app_cases, drive_cases\nimport firmware.app, firmware.controller\n"
         "r = app_cases.case_imports()\n"
         "r['files'] = [firmware.app.__file__, firmware.controller.__file__]\n"
-        "r.update(app_cases.case_anti_windup())\n"
-        "r.update(app_cases.case_motor_wiring())\n"
+        "r.update(drive_cases.case_anti_windup())\n"
+        "r.update(drive_cases.case_motor_wiring())\n"
         "r.update(app_cases.case_ring())\n"
         "emit(r)\n",
         extra_paths=[tmp_path, REPO],
@@ -53,8 +53,8 @@ def test_compiled_x64_modules_import_and_run(tmp_path):
 
 @pytest.fixture(scope="module")
 def data_paths(tmp_path_factory):
-    """Replayed ADC codes from the sim with a pwl-table and a bcm3 calibration (as in
-    tests/firmware/test_app.py)."""
+    """Replayed ADC codes from the sim with a pwl-table and a bcm3 calibration (as data_path and
+    bcm3_data_path in tests/firmware/conftest.py)."""
     root = tmp_path_factory.mktemp("mpy_data")
     return {pots: model.write_replay_data(root, steps=600, duty=3000, pots=pots) for pots in ("pwl", "bcm3")}
 
