@@ -281,7 +281,7 @@ def calibration_files(board, out_dir):
 
 def stage(cpu, extra_calibration, tmp):
     march, board_name, _, _, _ = CPUS[cpu]
-    from host.link.flashing import mpy_cross_executable
+    from host.link.firmware_files import mpy_cross_executable
 
     board = json.loads((REPO / "boards" / (board_name + ".json")).read_text())
     # the bench drives PWM through its own machine: no pyb timers in the emulator

@@ -79,7 +79,7 @@ def why_not_settled(last, faults, stroke_end, out_limit):
 def _load(load):
     if load is None or isinstance(load, dict):
         return load
-    from host.link.virtual_board import parse_load
+    from host.link.bench_load import parse_load
 
     try:
         return parse_load(load)

@@ -75,8 +75,8 @@ def nonzero(kind):
 
 
 def load_option(text):
-    """An argparse type: a --load description (host.link.virtual_board.parse_load)."""
-    from host.link.virtual_board import parse_load
+    """An argparse type: a --load description (host.link.bench_load.parse_load)."""
+    from host.link.bench_load import parse_load
 
     try:
         return parse_load(text)
@@ -85,7 +85,7 @@ def load_option(text):
 
 
 def add_load_argument(parser, help_prefix="for --port sim or sim:rp2040: "):
-    from host.link.virtual_board import LOAD_HELP, LOAD_METAVAR
+    from host.link.bench_load import LOAD_HELP, LOAD_METAVAR
 
     parser.add_argument("--load", type=load_option, default=None, metavar=LOAD_METAVAR, help=help_prefix + LOAD_HELP)
 

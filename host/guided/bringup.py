@@ -24,7 +24,7 @@ import numpy as np
 
 from host.calibration.file import keep_dated_copy
 from host.errors import UserError
-from host.link.flashing import REPO, mpy_cross_executable
+from host.link.firmware_files import REPO, mpy_cross_executable
 from host.guided import acquire, stroke
 from host.guided.outcome import StepOutcome
 from host.guided.rig import reference_mm, reference_scale

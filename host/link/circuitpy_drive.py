@@ -2,7 +2,7 @@
 its owners install code, for a board whose drive a computer has mounted (CircuitPython then
 refuses code that writes it, so the raw REPL cannot; host/link/flashing.py does that otherwise).
 
-The same files as over the serial link (flashing.build: plain source, code.py, the board file,
+The same files as over the serial link (firmware_files.build: plain source, code.py, the board file,
 the calibration), each checked first (flashing.check_files). Each is written beside its place as
 NAME.new, flushed to the drive, then renamed over the old one: FAT has no atomic rename, but a
 file is never left half-written under its own name. The calibration goes last and the old one is
@@ -17,7 +17,8 @@ import tempfile
 from pathlib import Path
 
 from host.errors import UserError, os_error_line
-from host.link.flashing import build, check_files, circuitpython, resolve_board
+from host.link.firmware_files import build, circuitpython
+from host.link.flashing import check_files, resolve_board
 
 MARK = "boot_out.txt"  # CircuitPython writes it at every boot: a CIRCUITPY drive has it
 

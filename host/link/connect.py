@@ -150,7 +150,7 @@ def open_port(port, board=None, calibration=None, load=None, factory=True, uf2=N
               root=None, actuator=None, flash_image=None):
     """A BoardPort for `port` (use as a context manager): a device path as it is, `auto` resolved,
     `sim` a virtual board with `board` (name or file, default boards/sim.json), `calibration` on
-    its flash and `load` (a host.link.virtual_board.parse_load dict) hooked on its block;
+    its flash and `load` (a host.link.bench_load.parse_load dict) hooked on its block;
     `sim:rp2040` an emulated Pico running the MicroPython `uf2` (default $LSEA_PICO_UF2) with
     `board` (default boards/pico.json), our firmware and `calibration` installed by host flash;
     `factory=False` leaves its flash empty (for `host flash`). `progress(text)`: what a starting

@@ -19,7 +19,6 @@ client with a board's \r\n line endings, frames byte for byte (host/link/board_l
 """
 
 import json
-import math
 import os
 import select
 import shutil
@@ -37,14 +36,13 @@ try:  # POSIX only: a pseudo-terminal. Everything else in the host works without
 except ImportError:  # Windows
     fcntl = termios = tty = None
 
-from firmware.board_config import STROKE_LIMIT_MM
 from firmware.protocol import SYNC
 from host.link.board_line_endings import BoardLineEndings
+from host.link.firmware_files import install_factory
 from host.errors import UserError, install_hint
 
 REPO = Path(__file__).resolve().parents[2]
 DEFAULT_BOARD = REPO / "boards" / "sim.json"
-MAIN_PY = 'from firmware.board_main import run\nrun("board.json", "calibration.json")\n'  # main.py (code.py on CircuitPython), host flash's too
 HEAP = "4M"
 _RAW_BANNER = b"raw REPL; CTRL-B to exit"
 _FRIENDLY_PROMPT = b">>> "
@@ -101,15 +99,6 @@ def micropython_executable():
     return found
 
 
-def firmware_sources(board):
-    """(source path, path on the board) of every file the firmware needs for this board."""
-    files = [(p, "firmware/" + p.name) for p in sorted((REPO / "firmware").glob("*.py"))]
-    if board.get("simulated"):
-        files.append((REPO / "boards" / "__init__.py", "boards/__init__.py"))
-        files += [(p, "boards/sim/" + p.name) for p in sorted((REPO / "boards" / "sim").glob("*.py"))]
-    return files
-
-
 # The simulated actuator's calibration, made by the project's own guided calibration on
 # boards/sim.json (`python boards/make_sim_calibration.py` makes it again; a test checks that it
 # still matches the model): what `--port sim` and `host sim` start with, so that a newcomer can
@@ -123,54 +112,6 @@ def ready_calibration(board_path):
     if Path(board_path).resolve() == DEFAULT_BOARD.resolve() and READY_CALIBRATION.is_file():
         return READY_CALIBRATION
     return None
-
-
-def install_factory(root, board_path, calibration=None):
-    """Put what `host flash` would put on a board into `root` (plain copies, no mpy-cross)."""
-    root = Path(root)
-    board = json.loads(Path(board_path).read_text())
-    for src, dst in firmware_sources(board):
-        (root / dst).parent.mkdir(parents=True, exist_ok=True)
-        shutil.copyfile(src, root / dst)
-    shutil.copyfile(board_path, root / "board.json")
-    if calibration:
-        shutil.copyfile(calibration, root / "calibration.json")
-    (root / "main.py").write_text(MAIN_PY)
-
-
-LOAD_HELP = ("load on the output block of the virtual board, as hooked on a bench: none (default: the block "
-             "runs free, so force control drives it toward a stroke end), gauge[@MM] (a force gauge on the 60 mm "
-             "side, its fibre taut below MM, default the board file's anchor, 45 mm on boards/sim.json; negative "
-             "force targets pull against it), gauge-low[@MM] (the gauge on the 0 mm side, taut above MM; positive "
-             "targets pull against it), or constant:N (N newtons on the block, + toward 60 mm)")
-LOAD_METAVAR = "none|gauge[@MM]|gauge-low[@MM]|constant:N"
-_GAUGE_SIDES = {"gauge": "high", "gauge-low": "low"}
-
-
-STROKE_MM = STROKE_LIMIT_MM  # where a gauge's fibre can go taut: somewhere along a stroke the firmware represents
-CONSTANT_LOAD_MAX_N = 100  # several times what the actuator can push; beyond it the model's numbers run away
-
-
-def parse_load(text):
-    """`none`, `gauge[@MM]`, `gauge-low[@MM]` or `constant:N` -> the rig.json load dict (bench_rig.apply)."""
-    text = str(text).strip()
-    kind, sep, value = text.partition("@") if text.startswith("gauge") else text.partition(":")
-    try:
-        number = float(value) if sep else None
-    except ValueError:
-        number = math.nan
-    if number is None or math.isfinite(number):
-        if kind == "none" and not sep:
-            return {"kind": "none"}
-        if kind in _GAUGE_SIDES and (not sep or -STROKE_MM <= number <= STROKE_MM):
-            load = {"kind": "gauge", "side": _GAUGE_SIDES[kind]}
-            if sep:
-                load["anchor_mm"] = number
-            return load
-        if kind == "constant" and sep and abs(number) <= CONSTANT_LOAD_MAX_N:
-            return {"kind": "constant", "force_n": number}
-    raise ValueError("load must be none, gauge[@MM], gauge-low[@MM] or constant:N (MM within +-%g, N within +-%g; "
-                     "e.g. gauge@45, constant:-2.5), not %r" % (STROKE_MM, CONSTANT_LOAD_MAX_N, text))
 
 
 def _set_pty_mode(fd):

@@ -10,7 +10,7 @@ import pytest
 from boards.sim import bench_rig, machine
 from host import cli
 from host.link.telemetry_log import load
-from host.link.virtual_board import parse_load
+from host.link.bench_load import parse_load
 from testkit.interpreters import REPO
 
 from testkit.model import write_model_calibration

@@ -47,7 +47,7 @@ def _mcu_or_skip():
 def test_counters_wrap_on_the_emulated_m0(wrap_data, tmp_path):
     """The firmware as mpy-cross -march=armv6m files, the same case, 31-bit small ints."""
     _mcu_or_skip()
-    from host.link.flashing import mpy_cross_executable
+    from host.link.firmware_files import mpy_cross_executable
 
     rom = tmp_path / "rom"
     (rom / "firmware").mkdir(parents=True)

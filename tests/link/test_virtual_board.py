@@ -278,7 +278,8 @@ def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
         BoardClient(vboard.path, require_calibration=True)
     root = tmp_path / "flash"
     root.mkdir()
-    from host.link.virtual_board import DEFAULT_BOARD, install_factory
+    from host.link.firmware_files import install_factory
+    from host.link.virtual_board import DEFAULT_BOARD
 
     install_factory(root, DEFAULT_BOARD)
     protocol = root / "firmware" / "protocol.py"
@@ -294,7 +295,8 @@ def test_version_mismatch_and_missing_calibration_are_refused(vboard, tmp_path):
 def test_a_board_whose_interface_table_differs_is_refused_in_one_line(tmp_path):
     """Same version, same protocol number, one parameter's default changed in the board's copy of
     the table (a firmware from another checkout): the host names both hashes and says reflash."""
-    from host.link.virtual_board import DEFAULT_BOARD, install_factory
+    from host.link.firmware_files import install_factory
+    from host.link.virtual_board import DEFAULT_BOARD
 
     root = tmp_path / "flash"
     root.mkdir()
