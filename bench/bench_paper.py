@@ -34,7 +34,7 @@ def _run(out, extra):
 
 def _figures(results):
     """The summary figures of one run's results.json (those the report judges)."""
-    from host.experiments.report import headline
+    from host.experiments.targets import headline
 
     h = headline(results)
     t1 = results["table1"]

@@ -219,8 +219,8 @@ def describe(a, supply_volts, redraws):
 
 def judge(results):
     """{target: True/False/None} from a run's results.json, on the held-out figures where the run
-    has them (host.experiments.report.judged); None: the run stopped before it."""
-    from host.experiments.report import TARGETS, headline, judged
+    has them (host.experiments.targets.judged); None: the run stopped before it."""
+    from host.experiments.targets import TARGETS, headline, judged
 
     out = {"Df": None, "displacement": None, "no blocking": None, "force steps": None}
     try:
@@ -238,7 +238,7 @@ def judge(results):
         rows = ho.get("positions") or results["fig7"]["after"]
         out["displacement"] = max_error(rows) <= TARGETS["displacement_mm"]
     if "fig8" in results:
-        from host.experiments.report import ran_to_the_end
+        from host.experiments.targets import ran_to_the_end
 
         with_df = [b for n, b in results["fig8"] if n == "with Df"]
         out["no blocking"] = all(ran_to_the_end(b, results.get("stroke_nominal_mm")) for b in with_df) if with_df else None

@@ -19,6 +19,7 @@ import numpy as np
 
 from firmware import bcm_fixed, poly_fixed, pwl_fixed
 from firmware.calibration import LIMIT, SEGMENT_LIMIT  # the firmware's own bounds: one definition
+from host.calibration.tracked_int import track
 from host.fitting.rational_bezier import evaluate as bcm_float  # the float64 reference curve
 
 UM_PER_MM = 1000.0
@@ -43,73 +44,6 @@ class FixedExport(list):
             "max_intermediate": self.max_intermediate,
             "max_intermediate_log2": math.log2(max(self.max_intermediate, 1)),
         }
-
-
-class TrackedInt(int):
-    """An int whose arithmetic records the largest magnitude it produces (see `track`)."""
-
-    peak = 0
-
-    def _out(self, value):
-        value = int(value)
-        if abs(value) > TrackedInt.peak:
-            TrackedInt.peak = abs(value)
-        return TrackedInt(value)
-
-    def __add__(self, o):
-        return self._out(int(self) + int(o))
-
-    def __radd__(self, o):
-        return self._out(int(o) + int(self))
-
-    def __sub__(self, o):
-        return self._out(int(self) - int(o))
-
-    def __rsub__(self, o):
-        return self._out(int(o) - int(self))
-
-    def __mul__(self, o):
-        return self._out(int(self) * int(o))
-
-    def __rmul__(self, o):
-        return self._out(int(o) * int(self))
-
-    def __floordiv__(self, o):
-        return self._out(int(self) // int(o))
-
-    def __rfloordiv__(self, o):
-        return self._out(int(o) // int(self))
-
-    def __rshift__(self, o):
-        return self._out(int(self) >> int(o))
-
-    def __rrshift__(self, o):
-        return self._out(int(o) >> int(self))
-
-    def __lshift__(self, o):
-        return self._out(int(self) << int(o))
-
-    def __rlshift__(self, o):
-        return self._out(int(o) << int(self))
-
-    def __and__(self, o):
-        return self._out(int(self) & int(o))
-
-    def __rand__(self, o):
-        return self._out(int(o) & int(self))
-
-    def __neg__(self):
-        return self._out(-int(self))
-
-
-def track(func, inputs, k):
-    """Largest |intermediate| of the firmware function `func(x, k)` over all `inputs`."""
-    tk = [TrackedInt(v) for v in k]
-    TrackedInt.peak = max(abs(int(v)) for v in k)
-    for x in inputs:
-        TrackedInt.peak = max(TrackedInt.peak, abs(int(x)))
-        func(TrackedInt(int(x)), tk)
-    return TrackedInt.peak
 
 
 def _input_shift(adc_bits, scaled_bits):

@@ -9,7 +9,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from firmware.bcm_fixed import bcm3, invalid
-from host.calibration.fixed_export import TrackedInt, export_bcm3, export_pot, track
+from host.calibration.fixed_export import export_bcm3, export_pot
+from host.calibration.tracked_int import TrackedInt, track
 from host.fitting.models import fit_model
 from host.fitting.sweep import load_sweep
 from testkit.interpreters import evaluate_on_micropython

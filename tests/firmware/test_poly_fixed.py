@@ -8,7 +8,8 @@ from hypothesis import strategies as st
 
 from firmware import poly_fixed
 from firmware.poly_fixed import poly
-from host.calibration.fixed_export import export_poly, track
+from host.calibration.fixed_export import export_poly
+from host.calibration.tracked_int import track
 from testkit.interpreters import evaluate_on_micropython
 
 DF = [-1.922222e-6, 2.632e-4, -1.63e-2, 0.46, -4.6]  # Df_hat(D1), mm -> mm (the paper's eq. 6)

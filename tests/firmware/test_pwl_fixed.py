@@ -143,7 +143,7 @@ def test_the_board_accepts_exactly_the_tables_that_stay_within_31_bits(table):
     a table past any limit is refused, and on any table it accepts every intermediate of the
     real evaluator, at every knot and random codes, stays within 2**30."""
     from firmware.calibration import CalibrationError, check_pwl
-    from host.calibration.fixed_export import track
+    from host.calibration.tracked_int import track
 
     k, codes, past = table
     try:
