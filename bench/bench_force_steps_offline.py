@@ -157,7 +157,8 @@ def refit_calibration(board, cal, out_path, anchor):
     import numpy as np
 
     from host.calibration.file import read_calibration, write_calibration
-    from host.guided.force_calibration import CAVITY_NEAR_MM, TAUT_N, force_sections, identify
+    from host.guided.force_calibration import CAVITY_NEAR_MM
+    from host.guided.force_identification import TAUT_N, force_sections, identify
     from tests.sim.firmware_cases import case_force_points_sim
 
     levels = list(range(REFIT_LEVEL, REFIT_MAX_DUTY + 1, REFIT_LEVEL))

@@ -17,7 +17,7 @@ against the tare interpolated to its time (the gauge's zero drifts). The steps s
 import numpy as np
 
 from host.guided import acquire
-from host.guided.force_calibration import SIDES
+from host.guided.force_identification import SIDES
 from host.guided.friction_trim import hold_sequence
 
 STEPS_N = (5.0, 10.0, 15.0, 10.0, 5.0)  # magnitudes: loading, then unloading

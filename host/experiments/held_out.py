@@ -33,7 +33,7 @@ import numpy as np
 from host.experiments import displacement, force_runs
 from host.fitting.assembly import STOP_ZONE_UM, near_the_stops
 from host.guided import acquire, stroke
-from host.guided.force_calibration import SIDES
+from host.guided.force_identification import SIDES
 from host.guided.friction_trim import CHECK_FRACTIONS, trim_magnitudes
 
 POSITIONS = 6

@@ -59,7 +59,7 @@ def paper_method_offline(pots, assembly, force):
     from host.fitting.assembly import binned_peak, fit_df
     from host.fitting.force import fit_force
     from host.fitting.models import fit_model
-    from host.guided.force_calibration import TAUT_N
+    from host.guided.force_identification import TAUT_N
 
     out = {}
     for pot in ("pot1", "pot2"):

@@ -14,24 +14,19 @@ host/fitting/force.py.
 """
 
 import time
-from dataclasses import dataclass
 
 import numpy as np
 
-from firmware.calibration import FF_DUTY_MAX
-from host.calibration.file import force_table_section, friction_section, poly_section
 from host.errors import UserError
 from host.fitting.force import fit_force, hysteresis_n
+from host.guided.force_identification import (SIDES, TAUT_N, check_gauge_follows, force_sections, identify,
+                                              plot_force, poly_text, usable_range)
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 from host.guided.prompts import end_progress, progress_line
 
-D_RANGE_MM = (-2.0, 2.0)  # the cavity: |d| never exceeds 2 mm
-F_RANGE_N = (-25.0, 25.0)
 STEP_SPAN_DUTY = 5000  # --levels N: loading steps of 5000 / N duty (about 17 N in N steps on boards/sim.json)
 CAVITY_NEAR_MM = 1.8  # |d| beyond this: the nut is near the cavity wall, F0(d) turns vertical
-TAUT_N = 0.3  # below this the fibre may be slack: such points say nothing about the spring
-SIDES = {"high": -1, "low": 1}  # gauge side -> sign of the actuator's force against it
 
 
 def gauge_sides(choice):
@@ -166,26 +161,6 @@ def force_points(session, rig, prompter, opts, side="high"):
     return np.array(d), forces, s, loading, gauge.tares, np.array(duties, dtype=float)
 
 
-MIN_CORRELATION = 0.9  # the gauge's force against the spring's deformation over a side's points
-MIN_SPAN_N = 0.5  # and it must move at least this much while the spring deforms MIN_SPAN_MM
-MIN_SPAN_MM = 0.1
-
-
-def check_gauge_follows(d, forces, side):
-    """UserError unless the gauge's readings on `side` move with the spring's deformation: a
-    gauge not hooked, or read from an input it is not wired to (--gauge adc on a board without
-    it), gives readings that stay flat or wander, and F0 fitted to them would be nonsense. The
-    force and the deformation rise and fall together on a spring, friction or not."""
-    d, forces = np.asarray(d, dtype=float), np.asarray(forces, dtype=float)
-    if len(d) < 3 or np.ptp(d) < MIN_SPAN_MM:
-        return  # too little motion to judge (the step's own checks say so)
-    r = float(np.corrcoef(d, forces)[0, 1]) if np.ptp(forces) > 0 else 0.0
-    if np.ptp(forces) < MIN_SPAN_N or not r >= MIN_CORRELATION:
-        raise UserError("gauge on the %s side: its readings do not follow the spring (deformation %.3f..%.3f mm, gauge "
-                        "%.2f..%.2f N, correlation %.2f): is the gauge hooked to the block, and read from where it is "
-                        "wired (--gauge display or adc)?" % (side, d.min(), d.max(), forces.min(), forces.max(), r))
-
-
 MIN_STEP_DUTY = 100
 STRONG = 1.5  # a first step this many times force_range / levels newtons: the motor is strong, the steps shrink
 
@@ -234,73 +209,6 @@ def deformation_records(client):
     return rec
 
 
-@dataclass
-class Drive:
-    n_per_duty: float  # force the stalled motor holds per duty count, N
-    offset_n: float  # force at zero duty by the straight line (negative: the screw's own friction)
-    ff_duty: int  # the duty that holds the spring at the block's friction force (0: none)
-    why: str = ""
-
-
-def fit_drive(duty, spring_n, friction_n):
-    """The stalled motor's force per duty, from the force step's points (at each one the motor
-    holds the spring still, so its force is the spring's), and the duty that holds the spring at
-    the friction force: (h - min(offset, 0)) / slope (a negative offset is force the screw's own
-    friction takes before the spring gets any; a positive one is not counted on)."""
-    duty = np.abs(np.asarray(duty, dtype=float))
-    force = np.abs(np.asarray(spring_n, dtype=float))
-    if len(duty) < 3 or np.ptp(duty) <= 0:
-        return Drive(0.0, 0.0, 0, "too few duty levels")
-    slope, offset = np.polyfit(duty, force, 1)
-    if not slope > 0:
-        return Drive(float(slope), float(offset), 0, "the force did not grow with the duty")
-    if friction_n <= 0:
-        return Drive(float(slope), float(offset), 0, "no friction identified")
-    ff = int(round((friction_n - min(offset, 0.0)) / slope))
-    if not 0 < ff <= FF_DUTY_MAX:
-        return Drive(float(slope), float(offset), 0, "%d duty is outside 1..%d" % (ff, FF_DUTY_MAX))
-    return Drive(float(slope), float(offset), ff)
-
-
-def _poly_text(c, var):
-    n = len(c) - 1
-    return " + ".join("%.4g %s^%d" % (v, var, n - i) for i, v in enumerate(c))
-
-
-def identify(d, f, s, loading, duty, order="auto", friction=True):
-    """The force step's fit of its taut points, in the order taken: (ForceFit, Drive, a note or
-    None). A table the firmware cannot hold gives way to the polynomial it beat (the note says
-    so); the drive is fitted on the points at the band's edge (not ForceFit.left_out)."""
-    fit = fit_force(d, f, s, order, friction=friction, loading=loading)
-    unexported = None
-    if fit.kind == "pwl":
-        try:
-            force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
-            force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
-        except UserError as exc:
-            unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
-            fit = fit_force(d, f, s, order, friction=friction, tables=False, loading=loading)
-    on_edge = ~fit.left_out
-    drive = fit_drive(duty[on_edge], (f - fit.friction_n * s)[on_edge], fit.friction_n)
-    return fit, drive, unexported
-
-
-def force_sections(fit, drive, stats_f=None):
-    """The calibration sections `force`, `force_inverse` and `friction` of a fit (identify)."""
-    stats_d = {"order": fit.order_d, "rms_mm": fit.rms_d_mm}
-    table = fit.kind == "pwl"
-    return {
-        "force": force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"), stats_f) if table else
-        poly_section(fit.coeffs_f, D_RANGE_MM, 1000.0, 1000.0, ("um", "mN"), stats_f),
-        "force_inverse": force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"), stats_d) if table else
-        poly_section(fit.coeffs_d, F_RANGE_N, 1000.0, 1000.0, ("mN", "um"), stats_d),
-        # always written, so that a --no-friction run also replaces an older friction section
-        "friction": friction_section(fit.friction_n, {"rms_n": fit.rms_n, "points": int(np.count_nonzero(~fit.left_out)),
-                                                      "n_per_kduty": 1000 * drive.n_per_duty, "offset_n": drive.offset_n},
-                                     ff_duty=drive.ff_duty),
-    }
-
-
 def calibrate_force(session, rig, prompter, opts, calibration_path):
     from host.calibration.file import read_calibration
 
@@ -327,7 +235,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "force: %d points (%d taut), gauge %s, tares %s N (interpolated in time: the zero drifts), d %.3f..%.3f mm, "
         "F0 %.2f..%.2f N" % (len(d), len(dt), " and ".join(sides), ", ".join("%.2f" % t for t in tares), dt.min(), dt.max(),
                              ft.min(), ft.max()),
-        "force: F0(d) = %s  (N, mm)" % _poly_text(fit.coeffs_f, "d") if fit.kind == "poly" else
+        "force: F0(d) = %s  (N, mm)" % poly_text(fit.coeffs_f, "d") if fit.kind == "poly" else
         "force: F0(d) is a %d-knot table (cross-validated rms %.3f N against %.3f N for the best polynomial): "
         "d %s mm -> F0 %s N" % (len(fit.knots_d), min(fit.table_scores.values()), min(fit.scores.values()),
                               ", ".join("%.3f" % v for v in fit.knots_d), ", ".join("%.2f" % v for v in fit.knots_f)),
@@ -338,7 +246,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
             if np.any(fit.left_out) else "") if opts.friction else
         "force: no friction term (--no-friction); fit rms %.3f N, max %.3f N" % (fit.rms_n, fit.max_n),
         "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (
-            _poly_text(fit.coeffs_d, "F") if fit.kind == "poly" else "the table's inverse", 1000 * fit.rms_d_mm),
+            poly_text(fit.coeffs_d, "F") if fit.kind == "poly" else "the table's inverse", 1000 * fit.rms_d_mm),
         "force: loading/unloading hysteresis %.3f N (largest gap between the two fits)" % hyst,
         "force: cross-validated rms by order: " + ", ".join("%d: %.3f N" % kv for kv in fit.scores.items()),
         "force: the motor holds %.2f N per 1000 duty at stall (%+.2f N at zero duty): %d duty holds the spring at the "
@@ -370,69 +278,3 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)
 
 
-CONTACT_COMPLIANCE = 0.8  # a loading level that deforms the spring this much less per newton than the one before: contact
-
-
-def usable_range(d, f, loading, duty, side):
-    """(the largest force magnitude the force step measured on `side`, the largest before the
-    spring went into hard contact, the force where it did or None), N.
-
-    A spring pair deforms more per newton once a preloaded spring lifts off, and a little less as
-    it hardens, but when the nut meets the cavity's wall the deformation stops growing with the
-    force: the loading levels' compliance (mm per N between successive duty levels, the rounds
-    averaged) falls. A level whose compliance is under CONTACT_COMPLIANCE times the one before
-    was reached through contact; there F0(d) is not the spring's, and the trim's holds and the
-    experiments' forces stay below it. The first segment is not judged: at its small forces the
-    fibre's take-up and the friction band make its compliance what they please (2.1 -> 3.6 N
-    deformed 45 % more per newton than the rest on one actuator)."""
-    sign = SIDES[side]
-    on = (sign * np.asarray(f) > TAUT_N) & np.asarray(loading, dtype=bool)
-    if not np.any(sign * np.asarray(f) > 0):
-        return 0.0, 0.0, None
-    reached = float(np.max(sign * np.asarray(f)))
-    levels = sorted({int(abs(x)) for x in np.asarray(duty)[on]})
-    pts = []
-    for level in levels:
-        at = on & (np.abs(np.asarray(duty)).astype(int) == level)
-        pts.append((float(np.mean(sign * np.asarray(d)[at])), float(np.mean(sign * np.asarray(f)[at]))))
-    compliance = [(b[0] - a[0]) / (b[1] - a[1]) if b[1] > a[1] else 0.0 for a, b in zip(pts, pts[1:])]
-    for i in range(2, len(compliance)):  # not the first: the fibre and the friction band still settle there
-        if compliance[i] < CONTACT_COMPLIANCE * compliance[i - 1]:
-            return reached, pts[i][1], pts[i + 1][1]
-    return reached, reached, None
-
-
-def plot_force(path, d, f, s, fit, inside=None):
-    from matplotlib.figure import Figure  # drawn and written without pyplot: no backend is chosen
-
-    fig = Figure(figsize=(7, 6.5))
-    ax, ax2 = fig.subplots(2, 1, sharex=True, gridspec_kw={"height_ratios": [3, 1.3]})
-    inside = np.zeros(len(d), dtype=bool) if inside is None else inside
-    down = (s > 0) & ~inside
-    up = (s <= 0) & ~inside
-    ax.plot(d[down], f[down], "v", color="tab:red", ms=4, label="force fell (block slid toward 0 mm)")
-    ax.plot(d[up], f[up], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
-    if np.any(inside):
-        ax.plot(d[inside], f[inside], "o", mfc="none", color="0.3", ms=5,
-                label="just after a turn, inside the band (left out)")
-    grid = np.linspace(np.min(d), np.max(d), 200)
-    spring = fit.f0(grid)
-    ax.plot(grid, spring, "k-", lw=1, label="F0(d), %s (spring)" % (
-        "order %d" % fit.order_f if fit.kind == "poly" else "%d-knot table" % len(fit.knots_d)))
-    if fit.friction_n > 0:
-        ax.fill_between(grid, spring - fit.friction_n, spring + fit.friction_n, color="0.8", alpha=0.6,
-                        label="friction band +-%.2f N" % fit.friction_n)
-    ax.set_ylabel("actuator force = gauge (N)")
-    ax.set_title("Force identification (paper eqs. 8-9, with the block's friction)")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
-    resid = f - fit.f0(d) - fit.friction_n * s
-    ax2.plot(d[~inside], resid[~inside] * 1000, ".", color="tab:green", ms=4)
-    ax2.plot(d[inside], resid[inside] * 1000, "o", mfc="none", color="0.3", ms=4)
-    ax2.axhline(0, color="0.5", lw=0.6)
-    ax2.set_xlabel("spring deformation d = D1* - D2 (mm)")
-    ax2.set_ylabel("residual (mN)")
-    ax2.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    return path

@@ -36,7 +36,8 @@ from dataclasses import dataclass, field
 from host.errors import UserError
 from host.fitting.force_correction import F0Correction, common_errors, corrected_f0_table, deformation_span, f0_correction
 from host.guided import acquire
-from host.guided.force_calibration import SIDES, TAUT_N, GaugeOnSide
+from host.guided.force_calibration import GaugeOnSide
+from host.guided.force_identification import SIDES, TAUT_N
 from host.guided.prompts import end_progress, progress_line
 
 PRELOAD_N = 0.5  # takes up the fibre's slack before the first target
@@ -80,7 +81,7 @@ def hold_sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, me
 
 def side_reach(data, side):
     """The force magnitude (N) the force step showed the spring can hold on `side` (its StepOutcome
-    data): the largest it measured, below any hard contact (force_calibration.usable_range)."""
+    data): the largest it measured, below any hard contact (force_identification.usable_range)."""
     usable = (data.get("usable_n") or {}).get(side)
     if usable is not None:
         return float(usable)
@@ -198,7 +199,7 @@ def trimmed_sections(doc, trim):
     step's sections): friction, and force and force_inverse when F0 is corrected (the identified
     F0 kept in the new section's fit, `identified`). With the lines that say what was done."""
     from host.calibration.file import check_sections, force_table_section, friction_section
-    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+    from host.guided.force_identification import D_RANGE_MM, F_RANGE_N
 
     identified = doc["friction"]
     h = identified["friction_n"]

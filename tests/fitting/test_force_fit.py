@@ -13,7 +13,7 @@ from firmware.calibration import CalibrationError, poly_constants
 from firmware.pwl_fixed import FORCE_PWL_OFFSET, pwl
 from host.calibration.file import force_table_section
 from host.fitting.force import fit_force, inside_band, knots_spaced, level_spacing, spring_like
-from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+from host.guided.force_identification import D_RANGE_MM, F_RANGE_N
 
 
 def _points(springs, friction_n=0.4, noise_n=0.03, top_n=16.0, seed=2):

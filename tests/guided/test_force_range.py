@@ -4,7 +4,7 @@ trim and the experiments stay below them (host/guided/force_calibration.py usabl
 import numpy as np
 import pytest
 
-from host.guided.force_calibration import usable_range
+from host.guided.force_identification import usable_range
 
 
 def _levels(k1, k2, preload, cavity, forces, slack_first=False):
@@ -52,7 +52,7 @@ def test_a_gauge_that_does_not_follow_the_spring_stops_the_force_step():
     import pytest
 
     from host.errors import UserError
-    from host.guided.force_calibration import check_gauge_follows
+    from host.guided.force_identification import check_gauge_follows
 
     d = np.array([-0.1, -0.3, -0.5, -0.7, -0.9, -0.7, -0.5, -0.3])
     spring = 12.4 * d + np.array([0.3, 0.3, 0.3, 0.3, 0.3, -0.3, -0.3, -0.3])  # with 0.3 N of friction

@@ -88,7 +88,7 @@ def test_friction_compensated_force_steps_within_2_percent_on_both_sides(tmp_pat
     term the same data leave the 5 N steps several % off, so this could fail."""
     from host.calibration.fixed_export import export_poly
     from host.fitting.force import fit_force
-    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+    from host.guided.force_identification import D_RANGE_MM, F_RANGE_N
 
     points = []
     for side in ("high", "low"):
@@ -122,7 +122,7 @@ def test_force_steps_on_a_spring_that_lifts_off_use_a_table_within_2_percent(tmp
     interpreters, where the best polynomial leaves several times the table's error."""
     from host.calibration.file import force_table_section
     from host.fitting.force import fit_force
-    from host.guided.force_calibration import D_RANGE_MM, F_RANGE_N
+    from host.guided.force_identification import D_RANGE_MM, F_RANGE_N
 
     board = model.sim_board()
     board["actuator"]["springs"].update({"k1_n_per_mm": 17.0, "k2_n_per_mm2": 0.28, "preload_n": 7.0})
