@@ -19,7 +19,7 @@ with the measurements behind it, is in docs/firmware.md, "The step's choices", u
 from array import array
 
 from firmware.pi_control import PI
-from firmware.portable import const, ptr32, ticks_us, word_property, zeros
+from firmware.portable import TICK_US, const, ptr32, ticks_us, word_property, zeros
 from firmware.protocol import PARAMS
 from firmware.safety import FAULT_STEP_EXCEPTION
 
@@ -92,13 +92,14 @@ PERIOD = const(7)  # us
 LAST_START = const(8)  # ticks_us (mod 2**30) at the start of the last step
 TIMED = const(9)  # 1 once LAST_START holds a step of this timer run
 STEP_US_MAX = const(10)  # the longest step since boot, us
-OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one or ran >= 1 period
+OVERRUNS = const(11)  # steps that started >= 1.5 periods after the previous one or ran >= 1 period (+ TICK)
 HAS_MEAS = const(12)  # 1 while a Measurement is set (an int test is 2 instructions, `if obj` ~1300)
 LIM_LO = const(13)  # the soft stroke limits in force on D2, um (apply_params works them out)
 LIM_HI = const(14)
 EF = const(15)  # position mode: 16 x the error low-passed over ~16 steps, um (decides the friction feed-forward)
 PARKED = const(16)  # position mode with feed-forward: steps inside the deadband, up to _PARK_STEPS (parked)
-WORDS = const(17)
+TICK = const(17)  # the step clock's resolution, us: a gap or a step is late only beyond what it can misread
+WORDS = const(18)
 
 # the step's record for the telemetry ring, in the order of protocol.FIELDS
 _R_T = const(0)
@@ -126,6 +127,7 @@ class Controller:
         self.pi = PI()
         self.p = array("i", [row[1] for row in PARAMS])
         self.st[PERIOD] = 1000000 // loop_hz
+        self.st[TICK] = TICK_US  # 1000 on CircuitPython, whose step clock counts whole ms (portable.us_from_ms)
         self.rec = zeros(12)  # the step's telemetry record, handed to the ring
         self._ticks = ticks_us
         # Bound once here (binding allocates): viper code has no inline caches, so a method
@@ -217,7 +219,7 @@ class Controller:
         period = c[PERIOD]
         if c[TIMED]:
             gap = (t0 - c[LAST_START]) & _MASK
-            late = gap >= period + (period >> 1)
+            late = gap >= period + (period >> 1) + c[TICK]
         else:
             late = False
             c[TIMED] = 1
@@ -381,7 +383,7 @@ class Controller:
         dt = (int(self._ticks()) - t0) & _MASK
         if dt > c[STEP_US_MAX]:
             c[STEP_US_MAX] = dt
-        if (late or dt >= period) and c[OVERRUNS] < _MASK:
+        if (late or dt >= period + c[TICK]) and c[OVERRUNS] < _MASK:
             c[OVERRUNS] = c[OVERRUNS] + 1
 
     def set_force_target(self, force_mN):

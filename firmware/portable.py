@@ -27,17 +27,43 @@ except ImportError:  # CPython
     def const(value):
         return value
 
+
+def us_from_ms(ticks_ms):
+    """A ticks_us made from a millisecond clock `ticks_ms` that wraps at 2**29 (CircuitPython's
+    supervisor.ticks_ms): microseconds in whole milliseconds, wrapping at 2**30 as MicroPython's
+    ticks_us does, and allocating nothing (the count lives in an array). CircuitPython's only
+    finer clock, time.monotonic_ns, makes a long int at every call: two a step were 128 bytes,
+    a 12 ms garbage collection every 1.6 s of the loop (docs/circuitpython.md)."""
+    clock = array("i", [ticks_ms(), 0])  # the last reading, ms; the count, us mod 2**30
+
+    def ticks_us():
+        now = ticks_ms()
+        # a gap of up to 18 minutes stays a small int; a longer one makes one long int, still right
+        clock[1] = (clock[1] + ((now - clock[0]) & 0x1FFFFFFF) * 1000) & 0x3FFFFFFF
+        clock[0] = now
+        return clock[1]
+
+    return ticks_us
+
+
+TICK_US = 1  # the resolution of ticks_us below, us (1000 where it counts whole milliseconds)
 try:
     from time import ticks_us  # noqa: F401  (MicroPython: a 30-bit wrapping microsecond clock)
 except ImportError:  # CPython, CircuitPython
-    import time as _time
+    try:
+        from supervisor import ticks_ms as _ticks_ms  # CircuitPython
+    except ImportError:  # CPython
+        _ticks_ms = None
+    if _ticks_ms is not None:
+        ticks_us = us_from_ms(_ticks_ms)
+        TICK_US = 1000
+    else:
+        import time as _time
 
-    _ns = getattr(_time, "perf_counter_ns", None) or _time.monotonic_ns
+        _ns = getattr(_time, "perf_counter_ns", None) or _time.monotonic_ns
 
-    def ticks_us():
-        # CircuitPython has no ticks_us: monotonic_ns, a long int, allocates on every call
-        # (docs/circuitpython.md says what that costs)
-        return (_ns() // 1000) & 0x3FFFFFFF
+        def ticks_us():
+            return (_ns() // 1000) & 0x3FFFFFFF
 
 
 def zeros(n, typecode="i"):
