@@ -1,4 +1,5 @@
-"""Host commands run as child processes by tests that signal them (Ctrl-C, SIGTERM, SIGHUP).
+"""Host commands run as child processes: to the end (`run`), or by tests that signal them
+(Ctrl-C, SIGTERM, SIGHUP: `start`, `stop`).
 
 A shell that starts the suite in the background (`nohup ... &`, no job control) starts it with
 SIGINT ignored, and children inherit that: Python then installs no KeyboardInterrupt handler, and
@@ -11,6 +12,16 @@ import os
 import signal
 import subprocess
 import sys
+
+
+REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+
+
+def run(*args, timeout=600):
+    """`host ARGS` as a user runs it, to the end: (exit status, stdout, stderr)."""
+    proc = subprocess.run([sys.executable, "-m", "host", *args], capture_output=True, text=True, cwd=REPO,
+                          timeout=timeout)
+    return proc.returncode, proc.stdout, proc.stderr
 
 
 def _terminal_like():

@@ -14,13 +14,11 @@ Without ../shared or FUSE these skip with the reason; under CI (CI=true) that is
 
 import json
 import os
-import subprocess
-import sys
 
 import pytest
 
 from testkit import fat_drive
-from testkit.interpreters import REPO
+from testkit.processes import run as host
 from testkit.model import sim_board, write_model_calibration
 from tests.conftest import SHARED, shared_dir
 from tests.link.emulated_moves import move_and_hold
@@ -29,10 +27,6 @@ UF2 = SHARED / "mcu" / "rp2" / "circuitpython" / "circuitpython-10.2.1-raspberry
 BOARD = "pico_circuitpython"
 
 
-def host(*args, timeout=600):
-    proc = subprocess.run([sys.executable, "-m", "host"] + list(args), capture_output=True, text=True, cwd=REPO,
-                          timeout=timeout)
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 def status_after_boot(pico, tries=20):

@@ -8,12 +8,11 @@ Without ../shared these skip with the reason; under CI (CI=true) that is a failu
 """
 
 import json
-import subprocess
-import sys
 
 import pytest
 
 from testkit.interpreters import REPO
+from testkit.processes import run as host
 from testkit.model import sim_board, write_model_calibration
 from tests.conftest import SHARED, shared_dir
 from tests.link.emulated_moves import move_and_hold
@@ -22,11 +21,6 @@ UF2 = SHARED / "mcu" / "rp2" / "circuitpython" / "circuitpython-10.2.1-raspberry
 BOARD = "pico_circuitpython"
 
 
-def host(*args, timeout=600):
-    """`host ARGS` as a user runs it: (exit status, stdout, stderr)."""
-    proc = subprocess.run([sys.executable, "-m", "host"] + list(args), capture_output=True, text=True, cwd=REPO,
-                          timeout=timeout)
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 @pytest.fixture(scope="module")

@@ -14,6 +14,7 @@ import sys
 import pytest
 
 from testkit.interpreters import REPO
+from testkit.processes import run as host
 from testkit.model import sim_board, write_model_calibration
 from tests.conftest import SHARED, shared_dir
 from tests.link.emulated_moves import move_and_hold
@@ -21,11 +22,6 @@ from tests.link.emulated_moves import move_and_hold
 UF2 = SHARED / "mcu" / "rp2" / "micropython-v1.28.0-RPI_PICO.uf2"
 
 
-def host(*args, timeout=300):
-    """`host ARGS` as a user runs it: (exit status, stdout, stderr)."""
-    proc = subprocess.run([sys.executable, "-m", "host"] + list(args), capture_output=True, text=True, cwd=REPO,
-                          timeout=timeout)
-    return proc.returncode, proc.stdout, proc.stderr
 
 
 @pytest.fixture(scope="module")
