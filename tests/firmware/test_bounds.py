@@ -62,8 +62,10 @@ class _Loader(importlib.machinery.SourceFileLoader):
 
 class _Finder(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path, target=None):
-        # firmware.portable is the CPython stand-in (its clock is the host's), not board code
-        if name.startswith("firmware.") and name != "firmware.portable":
+        # firmware.portable is the CPython stand-in (its clock is the host's), not board code;
+        # firmware.calibration reads and checks the file at boot only and is released after it
+        # (app.py): its CRC is a 32-bit unsigned value, a long int on a board, made once
+        if name.startswith("firmware.") and name not in ("firmware.portable", "firmware.calibration"):
             spec = importlib.machinery.PathFinder.find_spec(name, path)
             if spec is not None:
                 spec.loader = _Loader(name, spec.origin)

@@ -21,7 +21,9 @@ def move_and_hold(pico, timeout_s, settle_s=0.0, rate=1000):
         if settle_s:
             board.record(settle_s, rate=rate)
         tension = pico.state()["gauge_tension_n"]
-        assert abs(tension - 5.0) < 0.4, tension  # what the gauge feels (the model calibration's F0)
+        # what the gauge feels: 4.92-4.94 N on the MicroPython Pico, 5.00-5.15 N on CircuitPython at
+        # 250 Hz (2026-11-27, the model calibration's order-7 F0; its cubic F0 read 0.3 N strong)
+        assert abs(tension - 5.0) < 0.3, tension
         board.stop()
         status = board.status()
     pico.rig({"load": {"kind": "none"}})
