@@ -19,6 +19,7 @@ from host.link import stream
 from host.link.board_time import NO_DATA_S
 
 COL = {name: i for i, name in enumerate(P.FIELDS)}
+_T_COL = COL["t_us"]
 STREAM_HZ = 200
 STALL_S = 0.4  # no pot moved more than STALL_CODES for this long: at the end stop
 STALL_CODES = 10
@@ -119,34 +120,46 @@ def sweep(client, duty, say=None, stops=None):
     return records, direction
 
 
-def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, window=10, last=None):
+SETTLE_WINDOW_S = 0.1  # settle judges the mean of the records of this much board time
+
+
+def settle(board, mode, target, field, tolerance, timeout_s=10.0, hold_s=0.3, progress=None, last=None):
     """Run `mode` towards `target` until telemetry `field` stays within `tolerance` of it for
     `hold_s`; returns (settled, last value, seconds). Heartbeats keep the host timeout away.
     `last`, a dict, receives the newest record (field name -> int), e.g. to say where it ended.
     `timeout_s`, `hold_s` and the seconds returned are the board's own time (BoardTime); if no
     telemetry arrives for NO_DATA_S of wall-clock time it gives up (not settled).
 
-    The value judged is the mean of the last `window` records (0.1 s at the 100 Hz stream): a
-    single reading carries the pots' noise, which near a knee (where one code spans ~3x more
-    travel) is as large as a tight tolerance, so a still actuator would rarely look settled."""
+    The value judged is the mean of the records of the last SETTLE_WINDOW_S of board time (10 at
+    the 100 Hz stream it asks for; 100 when a log's tee keeps the stream at 1 kHz): a single
+    reading carries the pots' noise, which near a knee (where one code spans ~3x more travel) is
+    as large as a tight tolerance, so a still actuator would rarely look settled."""
     index = P.FIELDS.index(field)
+    window_us = int(SETTLE_WINDOW_S * 1e6)
     board.call("mode", mode)
     board.call("target", int(target))
     inside_since = None
     value = None
     now = 0.0
-    recent = []
+    recent = []  # (t_us, value) of the window's records
+    full = False  # a record older than the window was seen: the window spans all of it
     next_progress = 0.0
     with stream.closing(stream.records(board, timeout_s, 100, silence_ends=True)) as frames:
         for rows, now in frames:
-            recent.extend(int(v) for v in rows[:, index])
+            recent.extend(zip(rows[:, _T_COL].tolist(), rows[:, index].tolist()))
             if last is not None and len(rows):
                 last.update(zip(P.FIELDS, (int(v) for v in rows[-1])))
             if not recent:
                 continue
-            del recent[:-window]
-            value = sum(recent) / len(recent)
-            if len(recent) == window and abs(value - target) <= tolerance:
+            newest = recent[-1][0]
+            old = 0
+            while (newest - recent[old][0]) % P.T_US_WRAP >= window_us:
+                old += 1
+            if old:
+                full = True
+                del recent[:old]
+            value = sum(v for _, v in recent) / len(recent)
+            if full and abs(value - target) <= tolerance:
                 inside_since = now if inside_since is None else inside_since
                 if now - inside_since >= hold_s:
                     return True, value, now

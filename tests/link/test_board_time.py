@@ -104,6 +104,23 @@ def test_settle_times_out_and_holds_in_board_seconds(every):
     assert ok and value == 30000 and seconds == pytest.approx(1.0 + 0.09 + 0.3)
 
 
+def test_settle_judges_a_tenth_of_a_second_whatever_rate_the_stream_runs_at():
+    """A log's tee keeps the stream at 1 kHz whatever settle asks (host move --log): the window is
+    still 0.1 s of the board's time (100 records), not 10 records (10 ms of noise)."""
+
+    class TeedLink(FakeLink):
+        def start_stream(self, hz):
+            self.sent.append(("stream", "on", hz))  # the tee's rate stays
+
+    def d2(t):
+        return 30000 if t >= 1.0 - 1e-9 else 10000  # (the fake's clock sums 1 ms steps in floats)
+
+    link = TeedLink(hz=1000, d2=d2)
+    ok, value, seconds = settle(link, "position", 30000, "d2_um", 50, timeout_s=5, hold_s=0.3)
+    # the window all at the target from 1.099 s, held 0.3 s (+ one record: the floats' sum of 1 ms steps)
+    assert ok and value == 30000 and seconds == pytest.approx(1.0 + 0.099 + 0.3, abs=0.0015)
+
+
 def test_settle_gives_up_when_the_board_stops_streaming(monkeypatch):
     monkeypatch.setattr(acquire, "NO_DATA_S", 0.2)
     ok, value, seconds = settle(FakeLink(every=10 ** 9), "position", 30000, "d2_um", 50, timeout_s=5)
