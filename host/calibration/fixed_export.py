@@ -35,15 +35,19 @@ class FixedExport(list):
         self.bound = float(bound)
         self.max_intermediate = int(max_intermediate)
         self.outputs = outputs  # what the firmware function gave at each checked input
+        self.sampled = False  # a table of a curve sampled at evenly spaced codes, not of the fit's own knots
 
     def report(self):
-        return {
+        out = {
             "kind": self.kind,
             "max_error": self.max_error,
             "bound": self.bound,
             "max_intermediate": self.max_intermediate,
             "max_intermediate_log2": math.log2(max(self.max_intermediate, 1)),
         }
+        if self.sampled:  # its knots are not the ones a section's coefficients list (consistency.py)
+            out["sampled"] = True
+        return out
 
 
 def _input_shift(adc_bits, scaled_bits):
@@ -227,9 +231,12 @@ def export_curve_table(f, adc_bits, n_points=None, max_error_um=None, unit_um=UM
         if not (np.all(d >= 0) or np.all(d <= 0)):
             raise ValueError("curve is not monotone over its range: a table of it cannot be trusted")
         try:
-            return export_pwl(kx, ky, adc_bits, max_error_um, unit_um, reference=reference)
+            table = export_pwl(kx, ky, adc_bits, max_error_um, unit_um, reference=reference)
         except ValueError as e:
             err = e
+            continue
+        table.sampled = True
+        return table
     raise ValueError("no table of up to %d points meets the bound: %s" % (tries[-1], err))
 
 

@@ -1,0 +1,44 @@
+"""host/calibration/consistency.py: a pot section's readable knots against its table. A table the
+export made from the fit's own knots must list about as many knots as it has (a truncated list
+is refused: tests/link/test_flash.py); one the export had to sample from the fit's curve
+(export_curve_table, when the knots themselves cannot be exported) has as many knots as it
+needed, so only the positions at the listed knots are compared."""
+
+import numpy as np
+
+from host.calibration.consistency import contradictions
+from host.calibration.file import pot_section
+from host.fitting.piecewise_linear import _result
+
+BOARD = {"adc_bits": 12}
+
+
+def pwl_fit(kx, ky):
+    fit = _result("pwl", len(kx), len(kx), np.asarray(kx, dtype=float), np.asarray(ky, dtype=float))
+    fit.monotone = True
+    return fit
+
+
+def test_a_table_sampled_from_the_fit_is_judged_by_its_positions_not_its_knot_count():
+    # two knot codes closer than the table's resolution: the knots cannot be a table, the curve can
+    kx = [0.0, 1e-6, 1000.0, 2000.0, 3000.0, 4095.0]
+    ky = [0.0, 1e-9, 15.0, 30.0, 45.0, 60.0]
+    section = pot_section(pwl_fit(kx, ky), 12)
+    assert section["fixed_check"].get("sampled") is True and section["fixed"][0] > len(kx) + 3
+    assert contradictions({"board": "sim", "pot1": section}, BOARD) == []
+    # its listed positions must still agree with what the table gives
+    wrong = dict(section, coefficients=dict(section["coefficients"], knots_y=[0.0, 0.0, 15.0, 31.0, 45.0, 60.0]))
+    said = contradictions({"board": "sim", "pot1": wrong}, BOARD)
+    assert len(said) == 1 and "knots say 31 mm" in said[0], said
+
+
+def test_a_table_of_the_fits_own_knots_must_list_them_all():
+    kx = [0.0, 1000.0, 2000.0, 3000.0, 4095.0]
+    ky = [0.0, 15.0, 30.0, 45.0, 60.0]
+    section = pot_section(pwl_fit(kx, ky), 12)
+    assert "sampled" not in section["fixed_check"]
+    assert contradictions({"board": "sim", "pot1": section}, BOARD) == []
+    dense = [float(v) for v in np.linspace(0, 4095, 20)]
+    listed = dict(section, coefficients={"knots_x": dense, "knots_y": [v * 60 / 4095 for v in dense]})
+    said = contradictions({"board": "sim", "pot1": listed}, BOARD)
+    assert len(said) == 1 and "lists 20 knots for a table of" in said[0], said
