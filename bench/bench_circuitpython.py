@@ -2,9 +2,10 @@
 (host/link/plain_firmware.py) through analogio and pwmio, the step paced by the main loop, on the
 rp2040js emulator with the simulated actuator on its pins.
 
-    .venv/bin/python bench/bench_circuitpython.py --uf2 FILE [--rates 250 500] [--json OUT]
+    .venv/bin/python bench/bench_circuitpython.py --uf2 FILE [--rates 250 500] [--oversample N] [--json OUT]
 
-For each loop rate: boards/pico_circuitpython.json with that loop_hz, installed by `host flash`
+For each loop rate: boards/pico_circuitpython.json with that loop_hz (and `oversample` reads per
+channel a step, when given), installed by `host flash`
 (plain source, through the raw REPL) with the simulated actuator's model calibration (testkit/model.py,
 tables, Df, force, friction), then tests/firmware/circuitpython_timing.py run on the chip with
 `mpremote run`, which measures with the chip's own clock (time.monotonic_ns):
@@ -37,13 +38,15 @@ BOOT = ("import time, gc\nt0 = time.monotonic_ns()\nimport firmware.app\nt1 = ti
         "print('BOOT', (t1 - t0) // 1000, (t2 - t1) // 1000, gc.mem_free(), app.calibration is not None)\n")
 
 
-def measure(uf2, rate, tmp):
+def measure(uf2, rate, tmp, oversample=None):
     from host.link.emulated_pico.board import EmulatedPico
     from host.link.flashing import flash, mpremote, to_repl
     from testkit import model
 
     board = json.load(open(os.path.join(ROOT, "boards", "pico_circuitpython.json")))
     board["loop_hz"] = rate
+    if oversample:
+        board["oversample"] = oversample
     board_path = os.path.join(tmp, "pico_circuitpython.json")
     with open(board_path, "w") as f:
         json.dump(board, f)
@@ -69,6 +72,7 @@ def main():
     ap.add_argument("--uf2", default=os.environ.get("LSEA_CIRCUITPY_UF2"),
                     help="CircuitPython for raspberry_pi_pico (.uf2); default $LSEA_CIRCUITPY_UF2")
     ap.add_argument("--rates", type=int, nargs="+", default=[250, 500], help="loop rates to run, Hz")
+    ap.add_argument("--oversample", type=int, help="reads per channel a step (default: the board file's)")
     ap.add_argument("--json", help="write every figure to this file")
     a = ap.parse_args()
     if not a.uf2:
@@ -77,9 +81,9 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         for rate in a.rates:
             print("loop %d Hz: flashing and measuring on the emulated Pico..." % rate, file=sys.stderr, flush=True)
-            rows[rate] = r = measure(a.uf2, rate, tmp)
+            rows[rate] = r = measure(a.uf2, rate, tmp, a.oversample)
             c, al, p = r["cost_us"], r["alloc_bytes_per_step"], r["paced"]
-            print("loop %d Hz (period %d us)" % (rate, 1000000 // rate))
+            print("loop %d Hz (period %d us), %s reads a channel a step" % (rate, 1000000 // rate, a.oversample or "the board file's"))
             print("  step cost us: " + ", ".join("%s %.0f" % (m, c[m]) for m in ("idle", "open_loop", "position", "force")))
             print("  step allocates bytes: " + ", ".join("%s %.0f" % (m, al[m]) for m in ("idle", "open_loop", "position", "force")))
             print("  main-loop pass without the step %.0f us; one garbage collection %d us" % (c["main_loop_pass"], r["collect_us"]))

@@ -31,6 +31,8 @@ and per seed the mean, spread and range of its worst step over the anchors.
 Diagnostics (each changes what is run, and says so in the tally line):
     --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280
     --oversample N       every board read N times a step (the run's own value is used otherwise)
+    --oversample-times K the run's own reads a step times K, at most 64 (with --loop-hz 250 and
+                         K 4: as many reads a second as the run's at 1 kHz)
     --noise LSB          both pots' noise set to LSB (what the loop does with quieter pots)
     --friction true|identified   the calibration's friction h replaced by the board's true one or
                          the force step's identified one (what the trim changes)
@@ -111,7 +113,7 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
-DIAG = {"oversample": None, "noise": None, "loop_hz": None, "friction": None}  # --oversample, --noise, --loop-hz, --friction
+DIAG = {"oversample": None, "oversample_times": None, "noise": None, "loop_hz": None, "friction": None}  # from the options
 # What the loads are: what the gauge shows (firmware_cases.BenchGauge: noise, display, zero drift,
 # tares with the fibre slack before and after), as a bench measures them; --true-load: the
 # simulator's true load, which no bench has (a diagnostic)
@@ -126,6 +128,8 @@ def as_run(runs, seed, board, tmp):
     oversample = json.load(open(row)).get("oversample") if os.path.exists(row) else None
     oversample = DIAG["oversample"] or oversample
     data = json.load(open(board))
+    if DIAG["oversample_times"]:
+        oversample = min(64, (oversample or data.get("oversample", 4)) * DIAG["oversample_times"])
     if (not oversample or data.get("oversample") == oversample) and DIAG["noise"] is None and not DIAG["loop_hz"]:
         return board
     if oversample:
@@ -431,6 +435,8 @@ def main():
     ap.add_argument("--param", action="append", default=[], metavar="NAME=VALUE",
                     help="diagnostic: a firmware parameter's default replaced (repeatable)")
     ap.add_argument("--oversample", type=int, help="diagnostic: reads per step on every board")
+    ap.add_argument("--oversample-times", type=int, metavar="K",
+                    help="diagnostic: the run's own reads per step times K (at most 64)")
     ap.add_argument("--noise", type=float, metavar="LSB", help="diagnostic: both pots' noise, LSB")
     ap.add_argument("--friction", choices=("true", "identified"),
                     help="diagnostic: the calibration's friction h replaced by the board's true one or the force step's "
@@ -455,6 +461,7 @@ def main():
         TRIM["fractions"] = tuple(float(v) for v in a.trim_fractions.split(","))
     GAUGE["at"] = a.at_gauge
     DIAG["oversample"] = a.oversample
+    DIAG["oversample_times"] = a.oversample_times
     DIAG["noise"] = a.noise
     DIAG["friction"] = a.friction
     if a.loop_hz:
@@ -493,6 +500,7 @@ def main():
                 print_spread(per_seed)
             if worst:
                 changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
+                    (["oversample x%d" % a.oversample_times] if a.oversample_times else []) + \
                     (["loop %d Hz" % a.loop_hz] if a.loop_hz else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else []) + \
                     (["friction h %s" % a.friction] if a.friction else []) + \

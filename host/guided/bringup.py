@@ -40,16 +40,26 @@ NOISY_LSB = 8.0  # rest noise above this many codes (std) is worth a look at the
 # codes on a 17 N/mm spring, within 2 % at 1.25). Reads per step are raised, in powers of two up
 # to OVERSAMPLE_MAX, to bring it to about QUIET_CODES; each read costs ~450 Cortex-M0
 # instructions (docs/firmware.md), so 16 adds ~16k to a ~20k step: within a 1 kHz period.
+# QUIET_CODES is per step at 1 kHz: the estimate averages over 64 ms whatever the rate, so a
+# slower loop needs quieter steps for the same noise in it (quiet_codes; CircuitPython's 250 Hz:
+# 0.5 codes, 16 reads a step where 1 kHz reads 4; docs/circuitpython.md).
 QUIET_CODES = 1.0
 OVERSAMPLE_MAX = 16
 
 
-def oversample_for(noise_codes, oversample):
+def quiet_codes(loop_hz):
+    """The rest noise per step (codes) that costs force control nothing at `loop_hz`: QUIET_CODES
+    at 1 kHz, less by sqrt(1000 / loop_hz) below it (as many reads a second as 1 kHz makes)."""
+    return QUIET_CODES * (min(loop_hz, 1000) / 1000.0) ** 0.5
+
+
+def oversample_for(noise_codes, oversample, loop_hz=1000):
     """The reads per step that bring rest noise `noise_codes` (seen at `oversample`) to about
-    QUIET_CODES, a power of two within OVERSAMPLE_MAX; `oversample` when it is quiet enough."""
-    if noise_codes <= 1.25 * QUIET_CODES or oversample >= OVERSAMPLE_MAX:
+    quiet_codes(loop_hz), a power of two within OVERSAMPLE_MAX; `oversample` when it is quiet enough."""
+    quiet = quiet_codes(loop_hz)
+    if noise_codes <= 1.25 * quiet or oversample >= OVERSAMPLE_MAX:
         return oversample
-    want = oversample * (noise_codes / QUIET_CODES) ** 2
+    want = oversample * (noise_codes / quiet) ** 2
     n = 1
     while n < want and n < OVERSAMPLE_MAX:
         n *= 2
@@ -84,7 +94,8 @@ class Wiring:
             out["pot_invert"] = sorted(want)
         if self.noise:
             now = int(board.get("oversample", 4))
-            n = oversample_for(max(self.noise.get("raw1", 0.0), self.noise.get("raw2", 0.0)), now)
+            n = oversample_for(max(self.noise.get("raw1", 0.0), self.noise.get("raw2", 0.0)), now,
+                               int(board.get("loop_hz", 1000)))
             if n > now:
                 out["oversample"] = n
         return out
@@ -186,7 +197,7 @@ def _check_rest(w, session):
                               "oversample in the board file" % (label, std))
         else:
             now = int(board.get("oversample", 4))
-            n = oversample_for(std, now)
+            n = oversample_for(std, now, int(board.get("loop_hz", 1000)))
             if n > now:
                 w.lines.append("%s: %.1f codes of noise at rest is more than force control near 5 N tolerates (the "
                                "load-force estimate rides it): \"oversample\": %d in the board file brings it to about "

@@ -110,6 +110,22 @@ def test_the_firmware_check_names_a_mpy_mismatch_and_a_loop_that_does_not_keep_t
     assert problems == [] and "plain source" in lines[0], (lines, problems)
 
 
+def test_a_slower_loop_wants_quieter_steps():
+    """The force estimate averages 64 ms at any loop rate, so at 250 Hz (CircuitPython) a step must
+    be twice as quiet as at 1 kHz for the same noise in it: rest noise that 4 reads a step make
+    quiet enough at 1 kHz asks for 16 at 250 Hz; and the CircuitPython board file reads as many
+    times a second as the MicroPython Pico's does (docs/circuitpython.md: the offline force steps
+    at 250 Hz within 2 % on 35 of 72 cases with 16 reads a step, 27 with 4)."""
+    from host.guided.bringup import OVERSAMPLE_MAX, oversample_for, quiet_codes
+
+    assert quiet_codes(1000) == quiet_codes(2000) == 1.0 and abs(quiet_codes(250) - 0.5) < 1e-12
+    assert oversample_for(0.8, 4) == 4 and oversample_for(0.8, 4, loop_hz=250) == OVERSAMPLE_MAX
+    assert oversample_for(0.6, 16, loop_hz=250) == 16
+    cp = json.loads((REPO / "boards" / "pico_circuitpython.json").read_text())
+    mp = json.loads((REPO / "boards" / "pico.json").read_text())
+    assert cp["oversample"] * cp["loop_hz"] >= mp.get("oversample", 4) * mp.get("loop_hz", 1000)
+
+
 def test_noisy_pots_get_more_reads_per_step_with_consent(tmp_path, capsys):
     """Pots with 5 LSB of noise per read (the noisiest the robustness draws take): at the board
     file's 4 reads per step the rest noise is ~2.5 codes, more than force control near 5 N
