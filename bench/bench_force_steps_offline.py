@@ -1,6 +1,6 @@
 """Offline force steps against the gauge on simulated actuators (lsea-kit issue 11).
 
-What it runs: tests/sim/firmware_cases.py case_force_steps_sim -- the real firmware App on the
+What it runs: tests/sim/force_cases.py case_force_steps_sim -- the real firmware App on the
 simulated actuator, advanced with run_ticks on CPython (no real time, deterministic) -- with the
 bench's steps: 5, 10, 15, 10, 5 N on each side of the gauge ("high" and "low"), after a 0.5 N
 preload, each step settled 1.5 s (1500 ticks) then measured 0.5 s (500 ticks).
@@ -42,7 +42,7 @@ Diagnostics (each changes what is run, and says so in the tally line):
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
 `bench/bench_robustness.py --draws 8 --out out/robF` writes).
 
-Loads are what the gauge shows (tests/sim/firmware_cases.py BenchGauge: its channel's noise, the
+Loads are what the gauge shows (tests/sim/force_cases.py BenchGauge: its channel's noise, the
 display's 0.01 N, its zero drift, tared with the fibre slack before and after each side's steps),
 as a bench measures them, for the scores, the trim's holds and the refit's points; --true-load
 uses the simulator's true load instead (a diagnostic no bench has; the tally line says which).
@@ -114,7 +114,7 @@ def exact_calibration(board_path, out_path):
 
 
 DIAG = {"oversample": None, "oversample_times": None, "noise": None, "loop_hz": None, "friction": None}  # from the options
-# What the loads are: what the gauge shows (firmware_cases.BenchGauge: noise, display, zero drift,
+# What the loads are: what the gauge shows (force_cases.BenchGauge: noise, display, zero drift,
 # tares with the fibre slack before and after), as a bench measures them; --true-load: the
 # simulator's true load, which no bench has (a diagnostic)
 LOAD = {"measured": True}
@@ -163,7 +163,7 @@ def refit_calibration(board, cal, out_path, anchor):
     from host.calibration.file import read_calibration, write_calibration
     from host.guided.force_calibration import CAVITY_NEAR_MM
     from host.guided.force_identification import TAUT_N, force_sections, identify
-    from tests.sim.firmware_cases import case_force_points_sim
+    from tests.sim.force_cases import case_force_points_sim
 
     levels = list(range(REFIT_LEVEL, REFIT_MAX_DUTY + 1, REFIT_LEVEL))
     pts = []
@@ -226,7 +226,7 @@ def side_holds(cal, board, fractions, anchor):
     """Force-mode holds at `fractions` of a 16 N range on both sides, as side_holds in
     host/guided/friction_trim.py gives them: {sign: [(magnitude, estimate, gauge)]} (N)."""
     from host.guided.friction_trim import trim_magnitudes
-    from tests.sim.firmware_cases import case_force_steps_sim
+    from tests.sim.force_cases import case_force_steps_sim
 
     magnitudes = trim_magnitudes(REFIT_RANGE_MN / 1000.0, fractions)
     sides = {}
@@ -298,7 +298,7 @@ def gauge_anchor_um(runs, seed):
 def summary(runs, seed, exact, tmp):
     """One line for the seed at the present anchor; returns max(ss, est) over all its steps, %,
     or None when skipped."""
-    from tests.sim.firmware_cases import case_force_steps_sim
+    from tests.sim.force_cases import case_force_steps_sim
 
     board, cal = calibration(runs, seed, exact, tmp)
     if cal is None:
@@ -329,7 +329,8 @@ def ident(runs, seed, tmp):
     is the load plus h in the direction it slid, so F0(d) - (load + h * slide) should be 0.
     Prints that residual's range per side for the identified and the exact calibration (mN)."""
     from firmware.measurement import Measurement
-    from tests.sim.firmware_cases import case_force_points_sim, load_calibration
+    from tests.sim.firmware_cases import load_calibration
+    from tests.sim.force_cases import case_force_points_sim
 
     board, cal_run = calibration(runs, seed, False, tmp)
     _, cal_exact = calibration(runs, seed, True, tmp)
@@ -359,7 +360,8 @@ def ident(runs, seed, tmp):
 
 def trace(runs, seed, side, exact, tmp):
     import boards.sim.machine as sim
-    import tests.sim.firmware_cases as fc
+    import tests.sim.force_cases as fc
+    from tests.sim.firmware_cases import _run
 
     board, cal = calibration(runs, seed, exact, tmp)
     if cal is None:
@@ -368,7 +370,7 @@ def trace(runs, seed, side, exact, tmp):
     app, world, sign = fc._hooked_on_side(cal, side, ANCHOR[0], 200, board)
     app.set_mode("force")
     app.set_target(sign * PRELOAD)
-    fc._run(app, 500)
+    _run(app, 500)
     print("seed %s side %s (%s calibration), block friction h = %.0f mN; mN, in load units"
           % (seed, side, "exact" if exact else "refit" if REFIT["on"] else "run", h))
     print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd")

@@ -15,7 +15,7 @@ from host.calibration.report import _poly_inputs, evaluate, pot_positions_um
 from host.link.virtual_board import READY_CALIBRATION
 from testkit import interpreters, model
 
-CASES = "tests.sim.firmware_cases"
+CASES = "tests.sim.force_cases"
 
 
 def test_the_shipped_calibration_still_matches_the_model():

@@ -8,6 +8,7 @@ import pytest
 from testkit import interpreters, model
 
 CASES = "tests.sim.firmware_cases"
+FORCE_CASES = "tests.sim.force_cases"
 TARGETS = [10000, 45000, 30000, 5000, 55000]
 
 
@@ -19,12 +20,17 @@ def cal_path(tmp_path_factory):
     return str(path)
 
 
+def _cases(call):
+    """The case module a call's case lives in: the force cases apart from the others."""
+    return FORCE_CASES if call.startswith("case_force") else CASES
+
+
 def on_cpython(call):
-    return interpreters.on_cpython(CASES, call)
+    return interpreters.on_cpython(_cases(call), call)
 
 
 def on_micropython(call):
-    return interpreters.on_micropython(CASES, call)
+    return interpreters.on_micropython(_cases(call), call)
 
 
 def test_position_mode_reaches_targets_on_sim(cal_path):
@@ -283,7 +289,7 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
 
 
 def test_bench_gauge_reads_the_load_a_bench_would(cal_path, tmp_path):
-    """The offline tallies' gauge (firmware_cases.BenchGauge: the gauge channel with its noise,
+    """The offline tallies' gauge (force_cases.BenchGauge: the gauge channel with its noise,
     display rounding and zero drift, tared with the fibre slack before and after the steps) against
     the simulator's true load over the same force steps, on a gauge whose zero drifts fast (6 N/min
     at most, about 1 N over a side's steps): the actuator's sign on both sides, and within 0.15 N
