@@ -58,16 +58,16 @@ def holds(runs, seed, anchor_offset, tmp):
         for target in offline.TARGETS:
             app.set_target(sign * target)
             est = f0 = spring = load = 0.0
-            for k in range(offline.SETTLE + offline.HOLD):
+            for k in range(offline.RUN.settle + offline.RUN.hold):
                 sim.run_ticks(1)
                 app.heartbeat()
-                if k >= offline.SETTLE:
+                if k >= offline.RUN.settle:
                     m = app.ctrl.meas
                     est += sign * m.force
                     f0 += sign * (m.fs32 >> 5)
                     spring += sign * world.spring_force_n * 1000.0
                     load += -sign * world.external_force_n * 1000.0
-            n = offline.HOLD
+            n = offline.RUN.hold
             est, f0, spring, load = est / n, f0 / n, spring / n, load / n
             out.append((seed, side, target, load, (est - load, f0 - spring, spring - load, est - f0)))
         app.shutdown()
@@ -93,11 +93,11 @@ def main():
         anchors = [int(v) for v in a.anchors.split(",")]
     except ValueError:
         sys.exit("--anchors wants um values separated by commas, e.g. -1000,0,1000")
-    offline.GAUGE["at"] = True
-    offline.DIAG["oversample_times"] = a.oversample_times
+    run = offline.RUN
+    run.at_gauge = True
+    run.oversample_times = a.oversample_times
     if a.loop_hz:
-        offline.DIAG["loop_hz"] = a.loop_hz
-        offline.SETTLE, offline.HOLD = offline.SETTLE * a.loop_hz // 1000, offline.HOLD * a.loop_hz // 1000
+        run.at_rate(a.loop_hz)
     os.chdir(ROOT)
     rows = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -69,9 +69,36 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 TARGETS = (5000, 10000, 15000, 10000, 5000)
-SETTLE, HOLD, PRELOAD = 1500, 500, 500
-ANCHOR = [45000]  # um, the gauge anchor (--anchor: another realisation of the same board)
-GAUGE = {"at": False}  # --at-gauge: anchors are offsets from each board's own gauge anchor, where --trim holds too
+PRELOAD = 500
+
+
+class Run:
+    """What this invocation runs, set once from the options (main) and read by every case; the
+    defaults are the bench's plain run. bench/bench_force_error_budget.py sets it as well."""
+
+    settle = 1500  # ticks each step settles, then is measured over `hold` (1.5 s and 0.5 s at 1 kHz)
+    hold = 500
+    anchor_um = 45000  # the gauge anchor in force now (--anchor, --anchors: other realisations of a board)
+    at_gauge = False  # --at-gauge: anchors are offsets from each board's own gauge anchor, where --trim holds too
+    measured = True  # the loads the gauge shows (BenchGauge), or with --true-load the simulator's true ones
+    refit = False  # --refit
+    trim = False  # --trim, --no-f0, --trim-fractions
+    trim_f0 = True
+    trim_fractions = None
+    # diagnostics: --oversample, --oversample-times, --noise, --loop-hz, --friction
+    oversample = None
+    oversample_times = None
+    noise = None
+    loop_hz = None
+    friction = None
+
+    def at_rate(self, loop_hz):
+        """Every board at `loop_hz`; settle and hold keep their seconds."""
+        self.loop_hz = loop_hz
+        self.settle, self.hold = 1500 * loop_hz // 1000, 500 * loop_hz // 1000
+
+
+RUN = Run()
 SIDES = (("high", -1), ("low", 1))
 
 
@@ -103,7 +130,7 @@ def exact_calibration(board_path, out_path):
     # within 24 N, and no two points in the same um (a knot next to the release point's)
     keep = (np.abs(f) <= 24.0) & np.concatenate([[True], np.diff(dt) > 0.002])
     dt, f = dt[keep], f[keep]
-    x2 = ANCHOR[0] / 1000.0 + f / kg
+    x2 = RUN.anchor_um / 1000.0 + f / kg
     x1 = x2 + dt
     d1 = x1 + np.array([m1(x) for x in x1])
     dm = d1 - np.interp(d1, d1g, dfg) - (x2 + np.array([m2(x) for x in x2]))
@@ -113,11 +140,6 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
-DIAG = {"oversample": None, "oversample_times": None, "noise": None, "loop_hz": None, "friction": None}  # from the options
-# What the loads are: what the gauge shows (force_cases.BenchGauge: noise, display, zero drift,
-# tares with the fibre slack before and after), as a bench measures them; --true-load: the
-# simulator's true load, which no bench has (a diagnostic)
-LOAD = {"measured": True}
 
 
 def as_run(runs, seed, board, tmp):
@@ -126,26 +148,25 @@ def as_run(runs, seed, board, tmp):
     the diagnostics' changes, if any."""
     row = os.path.join(runs, "run-base" if seed == "sim" else "run-%s" % seed, "row.json")
     oversample = json.load(open(row)).get("oversample") if os.path.exists(row) else None
-    oversample = DIAG["oversample"] or oversample
+    oversample = RUN.oversample or oversample
     data = json.load(open(board))
-    if DIAG["oversample_times"]:
-        oversample = min(64, (oversample or data.get("oversample", 4)) * DIAG["oversample_times"])
-    if (not oversample or data.get("oversample") == oversample) and DIAG["noise"] is None and not DIAG["loop_hz"]:
+    if RUN.oversample_times:
+        oversample = min(64, (oversample or data.get("oversample", 4)) * RUN.oversample_times)
+    if (not oversample or data.get("oversample") == oversample) and RUN.noise is None and not RUN.loop_hz:
         return board
     if oversample:
         data["oversample"] = oversample
-    if DIAG["loop_hz"]:
-        data["loop_hz"] = DIAG["loop_hz"]
-    if DIAG["noise"] is not None:
+    if RUN.loop_hz:
+        data["loop_hz"] = RUN.loop_hz
+    if RUN.noise is not None:
         for pot in ("pot1", "pot2"):
-            data["actuator"]["pots"][pot]["noise_lsb"] = DIAG["noise"]
+            data["actuator"]["pots"][pot]["noise_lsb"] = RUN.noise
     out = os.path.join(tmp, "board-%s.json" % seed)
     with open(out, "w") as f:
         json.dump(data, f)
     return out
 
 
-REFIT = {"on": False}  # --refit
 REFIT_ROUNDS = 2  # the guided step's defaults: --rounds 2, --levels 8 (625 duty), --force-range 16
 REFIT_LEVEL, REFIT_MAX_DUTY, REFIT_RANGE_MN = 625, 9000, 16000
 REFIT_ANCHOR = 45000  # where the run identified F0 (--anchor-mm 45); the steps may then go elsewhere
@@ -169,7 +190,7 @@ def refit_calibration(board, cal, out_path, anchor):
     pts = []
     for side, sign in SIDES:
         for _ in range(REFIT_ROUNDS):
-            rows = case_force_points_sim(cal, side, levels, anchor=anchor, board_path=board, measured=LOAD["measured"],
+            rows = case_force_points_sim(cal, side, levels, anchor=anchor, board_path=board, measured=RUN.measured,
                                          stop_mN=REFIT_RANGE_MN, stop_um=int(CAVITY_NEAR_MM * 1000))
             top = sum(1 for r in rows if r[2])
             duties = levels[:top] + levels[:top - 1][::-1]
@@ -188,7 +209,6 @@ def refit_calibration(board, cal, out_path, anchor):
     return out_path
 
 
-TRIM = {"on": False, "f0": True, "fractions": None}  # --trim, --no-f0, --trim-fractions
 
 
 def trimmed_calibration(board, cal, out_path, anchor):
@@ -202,8 +222,8 @@ def trimmed_calibration(board, cal, out_path, anchor):
                                            trimmed_friction, trimmed_sections)
 
     doc = read_calibration(cal)
-    trim = trimmed_friction(doc["friction"]["friction_n"], side_holds(cal, board, TRIM["fractions"] or TRIM_FRACTIONS, anchor))
-    if not TRIM["f0"]:
+    trim = trimmed_friction(doc["friction"]["friction_n"], side_holds(cal, board, RUN.trim_fractions or TRIM_FRACTIONS, anchor))
+    if not RUN.trim_f0:
         trim.f0.why = "--no-f0"
     sections, lines = trimmed_sections(doc, trim)
     if "force" in sections:
@@ -232,7 +252,7 @@ def side_holds(cal, board, fractions, anchor):
     sides = {}
     for side, sign in SIDES:
         rows = case_force_steps_sim(cal, side, [sign * round(m * 1000) for m in magnitudes], anchor=anchor,
-                                    measured=LOAD["measured"], board_path=board)
+                                    measured=RUN.measured, board_path=board)
         sides[sign] = [(m, sign * est / 1000.0, sign * load / 1000.0) for m, (_, est, load) in zip(magnitudes, rows)]
     return sides
 
@@ -246,14 +266,14 @@ def calibration(runs, seed, exact, tmp):
         return board, exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
     if not os.path.exists(cal):
         return board, None
-    if REFIT["on"]:
+    if RUN.refit:
         out = os.path.join(tmp, "refit-%s.json" % seed)
-        cal = out if os.path.exists(out) else refit_calibration(board, cal, out, ANCHOR[0] if GAUGE["at"] else REFIT_ANCHOR)
-    if TRIM["on"]:
+        cal = out if os.path.exists(out) else refit_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
+    if RUN.trim:
         out = os.path.join(tmp, "trim-%s.json" % seed)
-        cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, ANCHOR[0] if GAUGE["at"] else REFIT_ANCHOR)
-    if DIAG.get("friction"):
-        cal = friction_replaced(board, cal, os.path.join(tmp, "friction-%s.json" % seed), DIAG["friction"])
+        cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
+    if RUN.friction:
+        cal = friction_replaced(board, cal, os.path.join(tmp, "friction-%s.json" % seed), RUN.friction)
     return board, cal
 
 
@@ -306,8 +326,8 @@ def summary(runs, seed, exact, tmp):
         return None
     rows = []
     for side, sign in SIDES:
-        rows += case_force_steps_sim(cal, side, [sign * t for t in TARGETS], anchor=ANCHOR[0], settle_ticks=SETTLE,
-                                     hold_ticks=HOLD, preload=PRELOAD, board_path=board, measured=LOAD["measured"])
+        rows += case_force_steps_sim(cal, side, [sign * t for t in TARGETS], anchor=RUN.anchor_um, settle_ticks=RUN.settle,
+                                     hold_ticks=RUN.hold, preload=PRELOAD, board_path=board, measured=RUN.measured)
 
     def worst(sel):
         ss = max(abs(load - t) / abs(t) * 100 for t, _, load in rows if sel(t))
@@ -316,7 +336,7 @@ def summary(runs, seed, exact, tmp):
     ss5, es5 = worst(lambda t: abs(t) == 5000)
     ss, es = worst(lambda t: True)
     print("%-5s %-5s anchor %5d  5 N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
-          % (seed, "exact" if exact else "refit" if REFIT["on"] else "run", ANCHOR[0], ss5, es5, ss, es), flush=True)
+          % (seed, "exact" if exact else "refit" if RUN.refit else "run", RUN.anchor_um, ss5, es5, ss, es), flush=True)
     return max(ss, es)
 
 
@@ -342,7 +362,7 @@ def ident(runs, seed, tmp):
     h = m_run.fric
     parts = []
     for side, _sign in SIDES:
-        rows = case_force_points_sim(cal_run, side, list(IDENT_DUTIES), anchor=ANCHOR[0], board_path=board)
+        rows = case_force_points_sim(cal_run, side, list(IDENT_DUTIES), anchor=RUN.anchor_um, board_path=board)
         res = {"identified": [], "exact": []}
         prev = None
         for d, load, _loading in rows:
@@ -352,10 +372,13 @@ def ident(runs, seed, tmp):
                     f0 = m.force_eval(d + m.st[16], m.k_force)
                     res[name].append(f0 - (load + slide * h))
             prev = load
+        if not res["identified"]:
+            parts.append("%s: no points (the block cannot be hooked at that anchor on this stroke)" % side)
+            continue
         parts.append("%s: identified %+d..%+d, exact %+d..%+d (%d points)" % (
             side, min(res["identified"]), max(res["identified"]), min(res["exact"]), max(res["exact"]),
             len(res["identified"])))
-    print("%-5s anchor %5d  F0(d) - (load + h * slide), mN: %s" % (seed, ANCHOR[0], "; ".join(parts)), flush=True)
+    print("%-5s anchor %5d  F0(d) - (load + h * slide), mN: %s" % (seed, RUN.anchor_um, "; ".join(parts)), flush=True)
 
 
 def trace(runs, seed, side, exact, tmp):
@@ -367,12 +390,12 @@ def trace(runs, seed, side, exact, tmp):
     if cal is None:
         sys.exit("no board or calibration file for seed %s under %s" % (seed, runs))
     h = json.load(open(board))["actuator"]["block"]["coulomb_n"] * 1000
-    app, world, sign = fc._hooked_on_side(cal, side, ANCHOR[0], 200, board)
+    app, world, sign = fc._hooked_on_side(cal, side, RUN.anchor_um, 200, board)
     app.set_mode("force")
     app.set_target(sign * PRELOAD)
     _run(app, 500)
     print("seed %s side %s (%s calibration), block friction h = %.0f mN; mN, in load units"
-          % (seed, side, "exact" if exact else "refit" if REFIT["on"] else "run", h))
+          % (seed, side, "exact" if exact else "refit" if RUN.refit else "run", h))
     print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd")
     prev = PRELOAD
     for t in TARGETS:
@@ -381,7 +404,7 @@ def trace(runs, seed, side, exact, tmp):
         sp_ext = f0_ext = None
         est = load = 0.0
         held = []
-        for k in range(SETTLE + HOLD):
+        for k in range(RUN.settle + RUN.hold):
             sim.run_ticks(1)
             app.heartbeat()
             m = app.ctrl.meas
@@ -391,13 +414,13 @@ def trace(runs, seed, side, exact, tmp):
                 sp_ext = sp
             if f0_ext is None or s * f0 > s * f0_ext:
                 f0_ext = f0
-            if k >= SETTLE:
+            if k >= RUN.settle:
                 est += sign * m.force
                 load += -sign * world.external_force_n * 1000.0
                 held.append(sp)
-        mean = sum(held) / HOLD
-        sd = (sum((v - mean) ** 2 for v in held) / HOLD) ** 0.5
-        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f  %9.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / HOLD, sd))
+        mean = sum(held) / RUN.hold
+        sd = (sum((v - mean) ** 2 for v in held) / RUN.hold) ** 0.5
+        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f  %9.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / RUN.hold, sd))
         prev = t
     app.shutdown()
 
@@ -450,26 +473,24 @@ def main():
                     help="diagnostic: score (and trim, refit) against the simulator's true load instead of the gauge's "
                          "readings, which is what a bench has")
     a = ap.parse_args()
-    LOAD["measured"] = not a.true_load
-    ANCHOR[0] = a.anchor
+    RUN.measured = not a.true_load
+    RUN.anchor_um = a.anchor
     try:
         anchors = [int(v) for v in a.anchors.split(",")] if a.anchors else [a.anchor]
     except ValueError:
         sys.exit("--anchors wants um values separated by commas, e.g. 44000,45000,46000")
-    REFIT["on"] = a.refit
-    TRIM["on"] = a.trim
-    TRIM["f0"] = not a.no_f0
+    RUN.refit = a.refit
+    RUN.trim = a.trim
+    RUN.trim_f0 = not a.no_f0
     if a.trim_fractions:
-        TRIM["fractions"] = tuple(float(v) for v in a.trim_fractions.split(","))
-    GAUGE["at"] = a.at_gauge
-    DIAG["oversample"] = a.oversample
-    DIAG["oversample_times"] = a.oversample_times
-    DIAG["noise"] = a.noise
-    DIAG["friction"] = a.friction
+        RUN.trim_fractions = tuple(float(v) for v in a.trim_fractions.split(","))
+    RUN.at_gauge = a.at_gauge
+    RUN.oversample = a.oversample
+    RUN.oversample_times = a.oversample_times
+    RUN.noise = a.noise
+    RUN.friction = a.friction
     if a.loop_hz:
-        global SETTLE, HOLD
-        DIAG["loop_hz"] = a.loop_hz
-        SETTLE, HOLD = SETTLE * a.loop_hz // 1000, HOLD * a.loop_hz // 1000
+        RUN.at_rate(a.loop_hz)
     override_params(a.param)
     if a.filter_shift is not None:  # before any App is made: Measurement asks it at construction
         import firmware.measurement as measurement
@@ -482,18 +503,19 @@ def main():
         if a.trace:
             if a.trace[1] not in ("high", "low"):
                 sys.exit("SIDE is high or low")
+            RUN.anchor_um = a.anchor + (gauge_anchor_um(a.runs, a.trace[0]) if a.at_gauge else 0)
             trace(a.runs, a.trace[0], a.trace[1], a.exact, tmp)
         elif a.ident:
             for anchor in anchors:
-                ANCHOR[0] = anchor
                 for seed in a.seeds:
+                    RUN.anchor_um = anchor + (gauge_anchor_um(a.runs, seed) if a.at_gauge else 0)
                     ident(a.runs, seed, tmp)
         else:
             worst = []
             per_seed = {}
             for anchor in anchors:
                 for seed in a.seeds:
-                    ANCHOR[0] = anchor + (gauge_anchor_um(a.runs, seed) if a.at_gauge else 0)
+                    RUN.anchor_um = anchor + (gauge_anchor_um(a.runs, seed) if a.at_gauge else 0)
                     w = summary(a.runs, seed, a.exact, tmp)
                     if w is not None:
                         worst.append(w)
