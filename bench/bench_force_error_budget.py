@@ -32,7 +32,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 
-import bench_force_steps_offline as offline  # noqa: E402  (the same actuators, calibrations and steps)
+import offline_force_rig as offline  # noqa: E402  (the same actuators, calibrations and steps)
 
 HELD_OUT_STEPS = 12  # host/experiments/held_out.py: LOADING + UNLOADING a side, two sides
 PARTS = ("estimate - load", "calibration", "friction held", "friction term")
