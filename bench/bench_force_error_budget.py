@@ -1,7 +1,7 @@
 """Where the offline force steps' errors come from, and what they imply for a whole run.
 
     .venv/bin/python bench/bench_force_error_budget.py --runs DIR [--anchors UM,UM] [--loop-hz HZ]
-        [--oversample-times K] [--rows] SEED...
+        [--oversample N] [--oversample-times K] [--rows] SEED...
 
 The same steps as bench/bench_force_steps_offline.py (5, 10, 15, 10, 5 N a side after a 0.5 N
 preload, settled 1.5 s, measured 0.5 s; the real firmware App on the simulated actuator on
@@ -84,6 +84,7 @@ def main():
     ap.add_argument("--runs", required=True, help="a robustness run's output: board-SEED.json, run-SEED/")
     ap.add_argument("--anchors", default="0", help="um from each board's own gauge anchor, comma-separated (default 0)")
     ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
+    ap.add_argument("--oversample", type=int, metavar="N", help="every board read N times a step (default: as its run was)")
     ap.add_argument("--oversample-times", type=int, metavar="K", help="the run's own reads per step times K (at most 64)")
     ap.add_argument("--rows", action="store_true", help="print every hold's split as well")
     a = ap.parse_args()
@@ -95,6 +96,7 @@ def main():
         sys.exit("--anchors wants um values separated by commas, e.g. -1000,0,1000")
     run = offline.RUN
     run.at_gauge = True
+    run.oversample = a.oversample
     run.oversample_times = a.oversample_times
     if a.loop_hz:
         run.at_rate(a.loop_hz)
@@ -113,7 +115,8 @@ def main():
         sys.exit("no actuator with a calibration under %s" % a.runs)
     print("%d holds (%d actuators x %d anchors x 2 sides x 5 steps), loop %s Hz%s, mN rms (mean) of each part:"
           % (len(rows), len(a.seeds), len(anchors), a.loop_hz or "the boards'",
-             ", reads x%d" % a.oversample_times if a.oversample_times else ""))
+             (", %d reads a step" % a.oversample if a.oversample else "")
+             + (", the run's reads x%d" % a.oversample_times if a.oversample_times else "")))
     print("| step | " + " | ".join(PARTS) + " | beyond 2 % |")
     print("| --- " * (len(PARTS) + 2) + "|")
     for k, phase in enumerate(PHASES + ("all",)):

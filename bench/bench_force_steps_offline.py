@@ -9,10 +9,10 @@ Which actuators: for each SEED, the board file RUNS/board-SEED.json and the cali
 robustness run identified for it, RUNS/run-SEED/calibration.json; with seed "sim", the
 repository's boards/sim.json and RUNS/run-base/calibration.json (skipped if that file is missing).
 With --refit the run's force sections are identified again by replaying the guided force step
-(refit_calibration: the run's pots and Df, the fit of today's code), so that a change to the
-force fit can be judged on the same actuators without a robustness run.
+(bench/offline_force_rig.py refit_calibration: the run's pots and Df, the fit of today's code),
+so that a change to the force fit can be judged on the same actuators without a robustness run.
 With --trim the calibration's friction is first trimmed in closed loop, as the guided calibration
-does after the force step (trimmed_calibration, host/guided/friction_trim.py).
+does after the force step (offline_force_rig.trimmed_calibration, host/guided/friction_trim.py).
 Not bit-reproducible with --refit or --trim (seen 2026-11-27): the re-identified or trimmed
 calibration differs from one process to the next now and then, and the closed loop's stick and
 slip turn that into a different verdict (one case read 0.56 % in some processes, 0.76 % in
@@ -36,8 +36,8 @@ and per seed the mean, spread and range of its worst step over the anchors.
 Diagnostics (each changes what is run, and says so in the tally line):
     --param NAME=VALUE   a firmware parameter's default replaced (protocol.PARAMS), e.g. kp_force=1280
     --oversample N       every board read N times a step (the run's own value is used otherwise)
-    --oversample-times K the run's own reads a step times K, at most 64 (with --loop-hz 250 and
-                         K 4: as many reads a second as the run's at 1 kHz)
+    --oversample-times K the run's own reads a step times K, at most 64 (the run's own may be
+                         bringup's 16 already: --oversample N says how many a board makes)
     --noise LSB          both pots' noise set to LSB (what the loop does with quieter pots)
     --friction true|identified   the calibration's friction h replaced by the board's true one or
                          the force step's identified one (what the trim changes)

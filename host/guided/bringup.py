@@ -197,11 +197,12 @@ def _check_rest(w, session):
                               "oversample in the board file" % (label, std))
         else:
             now = int(board.get("oversample", 4))
-            n = oversample_for(std, now, int(board.get("loop_hz", 1000)))
+            hz = int(board.get("loop_hz", 1000))
+            n = oversample_for(std, now, hz)
             if n > now:
-                w.lines.append("%s: %.1f codes of noise at rest is more than force control near 5 N tolerates (the "
-                               "load-force estimate rides it): \"oversample\": %d in the board file brings it to about "
-                               "%.1f (--fix writes it)" % (label, std, n, std * (now / n) ** 0.5))
+                w.lines.append("%s: %.1f codes of noise at rest is more than force control near 5 N tolerates at %d Hz "
+                               "(the load-force estimate rides it): \"oversample\": %d in the board file brings it to "
+                               "about %.1f (--fix writes it)" % (label, std, hz, n, std * (now / n) ** 0.5))
     return rest
 
 
