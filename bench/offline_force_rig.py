@@ -86,8 +86,6 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
-
-
 def as_run(runs, seed, board, tmp):
     """The board file as the run used it: bringup's --fix may have raised `oversample` (row.json
     records the value), and 4 reads a step instead of 16 double the deformation's noise. Then
@@ -153,8 +151,6 @@ def refit_calibration(board, cal, out_path, anchor):
         np.count_nonzero(taut), np.count_nonzero(fit.left_out), "table" if fit.kind == "pwl" else
         "order %d" % fit.order_f, fit.friction_n), flush=True)
     return out_path
-
-
 
 
 def trimmed_calibration(board, cal, out_path, anchor):
