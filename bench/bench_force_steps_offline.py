@@ -13,16 +13,10 @@ With --refit the run's force sections are identified again by replaying the guid
 so that a change to the force fit can be judged on the same actuators without a robustness run.
 With --trim the calibration's friction is first trimmed in closed loop, as the guided calibration
 does after the force step (offline_force_rig.trimmed_calibration, host/guided/friction_trim.py).
-Not bit-reproducible with --refit or --trim (seen 2026-11-27): the re-identified or trimmed
-calibration differs from one process to the next now and then, and the closed loop's stick and
-slip turn that into a different verdict (one case read 0.56 % in some processes, 0.76 % in
-others, with PYTHONHASHSEED fixed and OPENBLAS_NUM_THREADS=1 alike). Traced as far as this: the
-replayed points are bit-identical every time, but host.fitting.piecewise_linear.fit_pwl, called
-by the force fit (host/guided/force_identification.py identify) on byte-identical points, now
-and then returns knots 1e-8 to 1e-3 apart within one process (F0 at a knot 14.898 or 14.907 N);
-the same call repeated on its own gave one result. The cause is not found (a float sum whose
-rounding depends on where numpy places an array is one suspect; the knot optimiser's flat
-objective would amplify it). Without --refit and --trim a tally repeats exactly.
+A tally repeats exactly, with --refit and --trim too. (Until 2026-11-27 those two did not: the
+force fit's fit_pwl called scipy's least_squares(method="lm"), whose C MINPACK in scipy 1.15-1.17
+reads past the end of its Jacobian, so the knots depended on memory; host/fitting/
+levenberg_marquardt.py says more.)
 With --exact the identified calibration is replaced by an exact model calibration of that board
 (testkit/model.py write_model_calibration): F0 tabled against the deformation the firmware
 measures (the pots' mount errors and the Df travel included, the block where the gauge holds it

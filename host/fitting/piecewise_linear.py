@@ -8,7 +8,7 @@ outside), the form the firmware's fixed-point `pwl` runs.
 - `fit_pwl(x, y, k)`: k knots whose k - 2 interior positions are optimised (the ends stay at
   the x range). For given positions the values are again linear least squares (variable
   projection), so only the positions are searched: Levenberg-Marquardt
-  (`scipy.optimize.least_squares`) with an analytic Jacobian over log-gaps (knots stay ordered)
+  (host/fitting/levenberg_marquardt.py) with an analytic Jacobian over log-gaps (knots stay ordered)
   from several starts (evenly spaced, a dynamic-programming segmentation, seeded random ones,
   and optionally a smaller fit's knots grown by splitting its worst span). Long sweeps are
   searched on bin means; values are always solved on every sample. The even start is kept if
@@ -17,9 +17,10 @@ outside), the form the firmware's fixed-point `pwl` runs.
 """
 
 import numpy as np
-from scipy.optimize import least_squares, lsq_linear
+from scipy.optimize import lsq_linear
 
 from host.fitting.fit_result import FitResult
+from host.fitting.levenberg_marquardt import minimize
 
 # Weight of the slope-change penalty relative to the data term. It only decides values that the
 # data leave free (a knot span with no samples): those knots then lie on the straight line
@@ -255,9 +256,8 @@ def _refine(x, y, wt, lo, span, u0):
         du = g[None, 1:] * ((idx[None, :] + 1 <= idx[:, None]).astype(float) - u[:, None]) / c[-1]
         return (root[:, None] * dk * span) @ du
 
-    sol = least_squares(residuals, z0, jac=jacobian, method="lm", xtol=1e-8, ftol=1e-9, max_nfev=50 * k)
-    kx = state(sol.x)[0]
-    return float(np.sum(sol.fun ** 2)), kx
+    z, cost = minimize(residuals, jacobian, z0, max_evals=50 * k)
+    return cost, state(z)[0]
 
 
 def binned(x, y, max_points):

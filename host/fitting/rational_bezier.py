@@ -12,7 +12,7 @@ constant changes nothing, so the stored form has w_0 = 1.
 Fitting is variable projection: for fixed weights the curve is linear in the handles (the
 functions phi_i = B_i w_i / sum_j B_j w_j are a partition of unity), so the handles are solved
 exactly by (bounded) linear least squares and only the log-weights are searched, by a bounded
-Gauss-Newton (scipy least_squares, Kaufman's Jacobian) from a few starts.
+Levenberg-Marquardt (host/fitting/levenberg_marquardt.py, Kaufman's Jacobian) from a few starts.
 
 - bounds="data" (default): w_0 = 1, log-weights in +-ln 60 (ratios 1/60..60), handles within the
   reference range widened by 10 % of it on each side.
@@ -32,6 +32,7 @@ from scipy.optimize import differential_evolution, lsq_linear
 from scipy.special import comb
 
 from host.fitting.fit_result import FitResult, check_points
+from host.fitting.levenberg_marquardt import minimize
 
 LN60 = math.log(60.0)
 WIDEN = 0.10  # handle bounds: reference range widened by this share of it on each side
@@ -190,50 +191,10 @@ def _setup(x, y, order, bounds):
 
 
 def _local(problem, theta0, lo, hi, max_iter=200, rtol=1e-7):
-    """Projected Levenberg-Marquardt on the log-weights; returns (theta, cost).
-
-    Written out rather than scipy's least_squares because with at most ~15 unknowns the work is
-    a few tiny solves per step, and scipy's bookkeeping cost ten times the model evaluation.
-    """
-    theta = np.clip(np.asarray(theta0, dtype=float), lo, hi)
-    r = problem.residual(theta)
-    cost = float(r @ r)
-    if theta.size == 0:
-        return theta, cost
-    lam, quiet = 1e-3, 0
-    for _ in range(max_iter):
-        jac = problem.jacobian(theta)
-        grad, hess = jac.T @ r, jac.T @ jac
-        # a variable pressed against its bound by the gradient stays there this step
-        free = ~(((theta <= lo) & (grad > 0)) | ((theta >= hi) & (grad < 0)))
-        if not free.any():
-            break
-        hf, gf = hess[np.ix_(free, free)], grad[free]
-        damp = np.diag(np.diag(hf)) + 1e-12 * np.eye(gf.size)
-        while lam < 1e12:
-            step = np.zeros_like(theta)
-            try:
-                step[free] = -np.linalg.solve(hf + lam * damp, gf)
-            except np.linalg.LinAlgError:
-                lam *= 10
-                continue
-            trial = np.clip(theta + step, lo, hi)
-            rt = problem.residual(trial)
-            ct = float(rt @ rt)
-            if ct < cost:
-                break
-            lam *= 4
-        else:
-            break
-        if ct >= cost:
-            break
-        gain, moved = cost - ct, float(np.max(np.abs(trial - theta)))
-        theta, r, cost = trial, rt, ct
-        lam = max(lam / 5, 1e-12)
-        quiet = quiet + 1 if (gain <= rtol * cost or moved < 1e-4) else 0
-        if quiet >= 2:
-            break
-    problem.residual(theta)  # leave the cache at the answer
+    """Projected Levenberg-Marquardt on the log-weights (host/fitting/levenberg_marquardt.py);
+    returns (theta, cost) and leaves the problem's cache at the answer."""
+    theta, cost = minimize(problem.residual, problem.jacobian, theta0, lo, hi, max_iter, rtol)
+    problem.residual(theta)
     return theta, cost
 
 

@@ -8,16 +8,16 @@
 - `fit_pchip(x, y, k)`: PCHIP (piecewise cubic Hermite, monotone where the node values are)
   through k nodes evenly spaced over the x range. Node values are found by LEAST SQUARES of
   the PCHIP curve itself: start from the linear least-squares values of the hat basis (the
-  `lut` fit), then refine with `scipy.optimize.least_squares` (PCHIP's slopes depend on the
-  values nonlinearly). n_params = k. Coefficients {"knots_x", "knots_y"}; evaluate with
+  `lut` fit), then refine with Levenberg-Marquardt (host/fitting/levenberg_marquardt.py, forward
+  differences: PCHIP's slopes depend on the values nonlinearly). n_params = k. Coefficients {"knots_x", "knots_y"}; evaluate with
   `scipy.interpolate.PchipInterpolator(knots_x, knots_y)`, clamped outside the range.
 """
 
 import numpy as np
 from scipy.interpolate import BSpline, PchipInterpolator, make_lsq_spline
-from scipy.optimize import least_squares
 
 from host.fitting.fit_result import FitResult
+from host.fitting.levenberg_marquardt import forward_difference_jacobian, minimize
 from host.fitting.piecewise_linear import lsq_knot_values
 
 
@@ -93,9 +93,9 @@ def fit_pchip(x, y, order, **options):
         def residuals(v):
             return (PchipInterpolator(kx, v * scale)(x) - y) / scale
 
-        sol = least_squares(residuals, start / scale, method="lm", xtol=1e-10, ftol=1e-12)
-        ky = sol.x * scale
-        if np.sum(residuals(sol.x) ** 2) > np.sum(residuals(start / scale) ** 2):
+        v, cost = minimize(residuals, forward_difference_jacobian(residuals), start / scale, rtol=1e-12)
+        ky = v * scale
+        if cost > np.sum(residuals(start / scale) ** 2):
             ky = start
     else:
         ky = start  # two nodes: PCHIP is the straight line, already the least-squares one
