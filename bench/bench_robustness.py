@@ -17,7 +17,7 @@ mounting error of its own random shape and size on each pot, the reference senso
 gauge's noise, the gauge's stiffness and drift, block friction (Coulomb and viscous), spring
 stiffness, hardening, preload and damping, the masses, motor resistance and constants, screw
 lead and gear ratio, the board's supply voltage (5 V of a USB-powered board to 9 V), and which
-pot carries the reference sensor, and the stroke (0..40 to 0..65 mm; the board file's `stroke_mm`
+pot carries the reference sensor, and the stroke (40 to 80 mm: 0..L, or -22..58 mm for 80, testkit.actuators.frame_low; the board file's `stroke_mm`
 says it, as a user's would). Then `host experiment
 paper --port sim --board DRAW.json --out DIR/run-SEED --fix` runs with the defaults (about 6-9
 minutes each on a 2-core machine; --fix applies the board-file settings bringup recommends, as a

@@ -15,7 +15,7 @@ import copy
 
 import numpy as np
 
-from testkit.actuators import with_stroke
+from testkit.actuators import frame_low, with_stroke
 
 # name: (low, high) of a uniform draw; documented in docs/robustness.md with the results
 RANGES = {
@@ -44,7 +44,7 @@ RANGES = {
     "lead_mm": (0.4, 0.8),
     "gear_ratio": (1.0, 1.5),
     "supply_volts": (4.75, 9.0),  # a USB-powered board's 5 V to a 2S battery's
-    "stroke_mm": (40.0, 65.0),  # 0..L; the firmware's position range ends at 65.5 mm
+    "stroke_mm": (40.0, 80.0),  # 0..L, or ending at 58 mm when longer (testkit.actuators.frame_low)
 }
 CHOICES = {"wiper_lift_rail": ("high", "low"), "reference": ("pot1", "pot2")}
 
@@ -171,7 +171,8 @@ def _draw_once(base, rng):
     a["screw"]["nut_mass_kg"] = u("nut_mass_kg")
     volts = u("supply_volts")
     # the pots' tracks, the reference's span and the gauge's anchor follow the stroke
-    a = with_stroke({"actuator": a}, round(u("stroke_mm"), 1))["actuator"]
+    length = round(u("stroke_mm"), 1)
+    a = with_stroke({"actuator": a}, length, frame_low(length))["actuator"]
     return a, volts
 
 

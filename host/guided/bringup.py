@@ -240,7 +240,7 @@ def _free_push(w, session, prompter, opts, rest):
         w.lines.append("the block moved %+.2f mm (reference sensor)" % went)
         direction = (1 if went > 0 else -1) if abs(went) > 0.05 else None
     else:
-        direction = prompter.direction("Did the output block just move toward the 60 mm end or toward 0 mm?")
+        direction = prompter.direction("Did the output block just move toward the stroke's high end (60 mm on 0-60 mm) or its low end?")
     if direction is None:
         w.problems.append("which way the block moved is unknown (no reference sensor reading and no answer): motor "
                           "and pot directions not checked")
@@ -284,11 +284,11 @@ def describe(w, board_file):
     """Sentences for what is wrong and the board-file setting that fixes each."""
     out = []
     if w.motor_ok is False:
-        out.append("positive duty drives the nut toward 0 mm: set \"motor_invert\": true in %s (or swap the motor leads)"
+        out.append("positive duty drives the nut toward the stroke's low end: set \"motor_invert\": true in %s (or swap the motor leads)"
                    % board_file)
     for pot in ("pot1", "pot2"):
         if w.falls.get(pot):
-            out.append("%s's reading falls as its part moves toward 60 mm: add \"%s\" to \"pot_invert\" in %s (or swap "
+            out.append("%s's reading falls as its part moves toward the stroke's high end: add \"%s\" to \"pot_invert\" in %s (or swap "
                        "the two outer wires of its track)" % (pot, pot, board_file))
     if w.swapped:
         out.append("pot 1 is on the output block and pot 2 on the nut: swap the \"pot1\" and \"pot2\" entries of "

@@ -216,8 +216,9 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     if not doc.get("df"):
         raise UserError("the force step needs the assembly (Df) calibration first: host calibrate assembly")
     sides = gauge_sides(opts.gauge_sides)
+    low, high = rig.ends
     prompter.say("[force] %d loading/unloading rounds against the force gauge, gauge on the %s side%s" % (
-        opts.rounds, " then the ".join("60 mm" if x == "high" else "0 mm" for x in sides), "s" if len(sides) > 1 else ""))
+        opts.rounds, " then the ".join(high if x == "high" else low for x in sides), "s" if len(sides) > 1 else ""))
     parts = [force_points(session, rig, prompter, opts, side) for side in sides]
     rig.no_load()
     d, f, s, loading = (np.concatenate([p[i] for p in parts]) for i in range(4))

@@ -57,12 +57,13 @@ class Prompter:
             self.say("please answer y, n or a")
 
     def direction(self, question):
-        """+1 (toward 60 mm), -1 (toward 0 mm) or None (not seen, or --yes: nobody to ask)."""
+        """+1 (toward the stroke's high end, 60 mm on 0-60 mm), -1 (toward its low end) or None (not seen,
+        or --yes: nobody to ask)."""
         if self.yes:
             self.say(question + " [--yes: nobody watching]")
             return None
         while True:
-            answer = self._read(question + " [+ = toward 60 mm / - = toward 0 mm / ? = did not see / a = abort]: ")
+            answer = self._read(question + " [+ = toward the high end / - = toward the low end / ? = did not see / a = abort]: ")
             if answer in ("+", "60"):
                 return 1
             if answer in ("-", "0"):

@@ -9,8 +9,10 @@ nominal stroke, so positions mean the same on the board, in the reference's read
 experiments' targets.
 
 Positions are whole micrometres within +-65.535 mm on the board (firmware/protocol.py
-POSITION_LIMIT_UM, which measurement.py clamps to), so a stroke must lie within that: 0-65 mm. A longer actuator needs the
-firmware's position range widened first.
+POSITION_LIMIT_UM, which measurement.py clamps to), so a stroke must lie within that, with the
+pots' tracks and the nut's travel past the block too: a stroke longer than about 58 mm is
+described with its low end below 0 (an 80 mm one as -22..58 or -40..40 mm). Positions are then
+negative at one end; nothing else changes.
 """
 
 from firmware.board_config import STROKE_LIMIT_MM
@@ -36,7 +38,8 @@ def nominal(board, actuator=None):
         return DEFAULT_MM
     lo, hi = float(given[0]), float(given[1])
     if not -LIMIT_MM <= lo < hi <= LIMIT_MM:
-        raise ValueError("stroke_mm must be [low, high] within +-%g mm, not %r" % (LIMIT_MM, given))
+        raise ValueError("stroke_mm must be [low, high] within +-%g mm, not %r (a long stroke starts below 0: "
+                         "80 mm as [-22, 58])" % (LIMIT_MM, given))
     return lo, hi
 
 

@@ -42,3 +42,18 @@ def test_a_table_of_the_fits_own_knots_must_list_them_all():
     listed = dict(section, coefficients={"knots_x": dense, "knots_y": [v * 60 / 4095 for v in dense]})
     said = contradictions({"board": "sim", "pot1": listed}, BOARD)
     assert len(said) == 1 and "lists 20 knots for a table of" in said[0], said
+
+
+def test_a_long_line_split_by_the_export_lists_its_two_knots_and_a_bent_table_cannot():
+    # a 2-point line over 80 mm: the export splits it (each segment's interpolation product must
+    # stay within 31 bits) into more knots than EXTRA_KNOTS pads, all on the line
+    section = pot_section(pwl_fit([10.0, 4085.0], [-27.0, 65.0]), 12)
+    assert section["fixed"][0] > 2 + 3
+    assert contradictions({"board": "sim", "pot1": section}, BOARD) == []
+    # the same count of extra knots off the line is a truncated list
+    kx = [float(v) for v in np.linspace(10, 4085, 8)]
+    bent = pot_section(pwl_fit(kx, [-27.0 + 92.0 * (x / 4095) ** 1.3 for x in kx]), 12)
+    ends = dict(bent, coefficients={"knots_x": [kx[0], kx[-1]], "knots_y": [bent["coefficients"]["knots_y"][0],
+                                                                           bent["coefficients"]["knots_y"][-1]]})
+    said = contradictions({"board": "sim", "pot1": ends}, BOARD)
+    assert len(said) == 1 and "lists 2 knots for a table of" in said[0], said

@@ -7,7 +7,7 @@ import pytest
 
 from host.guided import stroke
 from host.guided.flow import Options, follow_the_actuator
-from testkit.actuators import with_stroke
+from testkit.actuators import frame_low, with_stroke
 from testkit.interpreters import REPO
 
 
@@ -18,15 +18,16 @@ def test_the_papers_stroke_gives_the_papers_numbers():
     assert stroke.middle(s) == 30.0 and stroke.min_sweep_mm(s) == 54.0 and stroke.gauge_anchor_mm(s) == 45.0
 
 
-@pytest.mark.parametrize("length", [45.0, 52.5, 65.0])
+@pytest.mark.parametrize("length", [45.0, 52.5, 58.0, 65.0, 80.0])
 def test_another_stroke_scales_every_number(length):
-    board = with_stroke(json.loads((REPO / "boards" / "sim.json").read_text()), length)
+    low = frame_low(length)  # 0, or below 0 for a stroke longer than 58 mm (80 mm: -22..58)
+    board = with_stroke(json.loads((REPO / "boards" / "sim.json").read_text()), length, low)
     s = stroke.nominal(board, board["actuator"])
-    assert s == (0.0, length)
+    assert s == (low, low + length) and s[1] <= 58.0
     targets = stroke.position_targets(s)
-    assert targets[0] == 1.0 and targets[-1] == length - 1.0 and all(b > a for a, b in zip(targets, targets[1:]))
+    assert targets[0] == low + 1.0 and targets[-1] == low + length - 1.0 and all(b > a for a, b in zip(targets, targets[1:]))
     assert all(abs(t - 5 * round(t / 5)) < 1e-9 for t in targets[1:-1])  # the 5 mm grid between the ends
-    assert stroke.middle(s) == length / 2 and stroke.min_sweep_mm(s) == pytest.approx(0.9 * length)
+    assert stroke.middle(s) == low + length / 2 and stroke.min_sweep_mm(s) == pytest.approx(0.9 * length)
 
 
 def test_the_end_targets_stay_inside_the_soft_limits_in_force():

@@ -63,10 +63,13 @@ def test_the_end_stops_frame_the_stroke_and_both_ends_are_reached(split_board, t
     assert displacement.max_error(rows) <= 0.1, rows
 
 
-def test_a_45_mm_actuator_calibrates_in_its_own_frame_and_reaches_both_ends(tmp_path):
-    """An actuator with a 45 mm stroke (testkit.actuators.with_stroke): the pot check asks for 90 %
-    of 45 mm, not of 60; the frame's middle is 22.5 mm; the firmware's soft limits start from the
-    board file's stroke; the targets 1 mm inside each end are reached."""
+@pytest.mark.parametrize("length, low", [(45.0, 0.0), (80.0, -22.0)])
+def test_another_stroke_calibrates_in_its_own_frame_and_reaches_both_ends(tmp_path, length, low):
+    """Actuators with a 45 mm and an 80 mm stroke (testkit.actuators.with_stroke; the 80 mm one
+    on -22..58 mm, testkit.actuators.frame_low, as the board's positions end at 65.5 mm): the pot
+    check asks for 90 % of the stroke, not of 60 mm; the frame's middle is the stroke's; the
+    firmware's soft limits start from the board file's stroke; the targets 1 mm inside each end
+    are reached."""
     from host.experiments import displacement
     from host.guided import stroke
     from host.guided.prompts import Prompter
@@ -74,25 +77,27 @@ def test_a_45_mm_actuator_calibrates_in_its_own_frame_and_reaches_both_ends(tmp_
     from host.guided.session import Session
     from testkit.actuators import with_stroke
 
-    board = with_stroke(json.loads(open("boards/sim.json").read()), 45.0)
+    board = with_stroke(json.loads(open("boards/sim.json").read()), length, low)
     board.pop("sources", None)
-    board_path = tmp_path / "board45.json"
+    board_path = tmp_path / "board.json"
     board_path.write_text(json.dumps(board))
     out = tmp_path / "calibration.json"
     args = build_parser().parse_args(["calibrate", "pots", "--port", "sim", "--board", str(board_path), "--out", str(out),
                                       "--yes", "--duty", "3000"])
     said = []
     calibrate(args, say=said.append)
-    assert any("check ok   range" in line and "(limit 40.5)" in line for line in said), said
+    assert any("check ok   range" in line and "(limit %g)" % (0.9 * length) in line for line in said), said
+    middle, high = low + length / 2, low + length
     lo, hi = read_calibration(out)["stroke"]["end_stops_mm"]
-    assert abs((lo + hi) / 2 - 22.5) < 0.1 and abs((hi - lo) - 45.0) < 0.15, (lo, hi)
+    assert abs((lo + hi) / 2 - middle) < 0.1 and abs((hi - lo) - length) < 0.15, (lo, hi)
     with Session("sim", str(board_path), out, say=lambda s: None) as session:
         status = session.client.call("status")
-        assert status["stroke_um"] == [max(500, round(lo * 1000) + 300), min(44500, round(hi * 1000) - 300)]
+        assert status["stroke_um"] == [max(round(low * 1000) + 500, round(lo * 1000) + 300),
+                                       min(round(high * 1000) - 500, round(hi * 1000) - 300)]
         s = stroke.nominal(session.board, session.actuator)
         rig = Rig(Prompter(yes=True, out=lambda s: None), session.virtual)
         scale = reference_scale(session.actuator)
         zero = displacement.zero_at_stops(session, rig, scale, middle_mm=stroke.middle(s))
-        rows = displacement.run_targets(session, rig, scale, zero, targets=(1.0, 22.5, 44.0))
+        rows = displacement.run_targets(session, rig, scale, zero, targets=(low + 1.0, middle, high - 1.0))
     assert all(r["settled"] for r in rows), rows
     assert displacement.max_error(rows) <= 0.1, rows
