@@ -84,10 +84,7 @@ def _knots(section, name):
 
 
 def _off_the_lines(pairs, board_um):
-    """How far (um) the board's positions stray from the lines between the knots `pairs` (codes, mm)
-    over the codes between the first knot and the last."""
-    xs = np.array([x for x, _ in pairs])
-    codes = np.arange(len(board_um))
-    inside = (codes >= xs[0]) & (codes <= xs[-1])
-    lines = np.interp(codes[inside], xs, [y * 1000.0 for _, y in pairs])
-    return float(np.max(np.abs(np.asarray(board_um, dtype=float)[inside] - lines), initial=0.0))
+    """How far (um) the board's positions stray, at any code, from the lines between the knots
+    `pairs` (codes, mm), held flat beyond the end knots as the board's table holds its ends."""
+    lines = np.interp(np.arange(len(board_um)), [x for x, _ in pairs], [y * 1000.0 for _, y in pairs])
+    return float(np.max(np.abs(np.asarray(board_um, dtype=float) - lines)))
