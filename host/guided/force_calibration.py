@@ -257,7 +257,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     ] + ([unexported] if unexported else [])
     usable = {}
     for side in sides:
-        reached, below, contact = usable_range(d, f, loading, duty, side)
+        reached, below, contact = usable_range(d, f, loading, duty, side, fit.friction_n)
         usable[side] = below
         if contact is not None:
             lines.append("force: on the %s side the spring went into hard contact (the nut at the cavity's wall) between "

@@ -112,7 +112,7 @@ def force_sections(fit, drive, stats_f=None):
 CONTACT_COMPLIANCE = 0.8  # a loading level that deforms the spring this much less per newton than the one before: contact
 
 
-def usable_range(d, f, loading, duty, side):
+def usable_range(d, f, loading, duty, side, friction_n=0.0):
     """(the largest force magnitude the force step measured on `side`, the largest before the
     spring went into hard contact, the force where it did or None), N.
 
@@ -123,7 +123,10 @@ def usable_range(d, f, loading, duty, side):
     was reached through contact; there F0(d) is not the spring's, and the trim's holds and the
     experiments' forces stay below it. The first segment is not judged: at its small forces the
     fibre's take-up and the friction band make its compliance what they please (2.1 -> 3.6 N
-    deformed 45 % more per newton than the rest on one actuator)."""
+    deformed 45 % more per newton than the rest on one actuator). Nor is any segment that starts
+    within the friction band (2 x `friction_n`) of the first level, nor compared against: on a
+    block with 1.19 N of friction the 2.2 -> 3.1 N segment deformed 60 % more per newton than
+    the rest, and the next, an ordinary one, read as contact at 3.1 N (seed 202611270601)."""
     sign = SIDES[side]
     on = (sign * np.asarray(f) > TAUT_N) & np.asarray(loading, dtype=bool)
     if not np.any(sign * np.asarray(f) > 0):
@@ -135,7 +138,10 @@ def usable_range(d, f, loading, duty, side):
         at = on & (np.abs(np.asarray(duty)).astype(int) == level)
         pts.append((float(np.mean(sign * np.asarray(d)[at])), float(np.mean(sign * np.asarray(f)[at]))))
     compliance = [(b[0] - a[0]) / (b[1] - a[1]) if b[1] > a[1] else 0.0 for a, b in zip(pts, pts[1:])]
-    for i in range(2, len(compliance)):  # not the first: the fibre and the friction band still settle there
+    # the first segment compared against: not the first (the fibre and the friction band still
+    # settle there), nor one that starts inside the band
+    first = next((i for i in range(1, len(compliance)) if pts[i][1] >= pts[0][1] + 2.0 * friction_n), len(compliance))
+    for i in range(first + 1, len(compliance)):
         if compliance[i] < CONTACT_COMPLIANCE * compliance[i - 1]:
             return reached, pts[i][1], pts[i + 1][1]
     return reached, reached, None

@@ -60,3 +60,16 @@ def test_a_gauge_that_does_not_follow_the_spring_stops_the_force_step():
     for readings in (np.full(8, 33.5), np.array([23.6] + [33.5] * 7), np.random.default_rng(1).normal(0, 3, 8)):
         with pytest.raises(UserError, match="do not follow the spring"):
             check_gauge_follows(d, readings, "high")
+
+
+def test_a_segment_inside_the_friction_band_is_neither_judged_nor_compared_against():
+    """Seed 202611270601 (1.19 N of block friction, identified 1.10): the 2.2 -> 3.1 N segment
+    deformed 60 % more per newton than the rest, the next, ordinary, one read as contact at 3.1 N,
+    and the run had no forces left to judge. With the friction band known it is not."""
+    forces = [0.37, 2.25, 3.12, 4.54, 5.96, 7.37, 8.79, 10.2, 11.6]
+    d, f, loading, duty = _levels(17.5, 1.17, 14.8, 2.0, forces)
+    late = np.array([i % len(forces) >= 2 for i in range(len(d))])
+    d = np.where(late, d - 0.04, d)  # the band's extra take-up, all of it in the second segment
+    assert usable_range(d, f, loading, duty, "high")[2] == pytest.approx(4.54)  # without the band: contact
+    reached, usable, contact = usable_range(d, f, loading, duty, "high", friction_n=1.10)
+    assert contact is None and usable == reached == pytest.approx(11.6)
