@@ -34,6 +34,11 @@ RESET_RETRY_S = 3.0  # soft_reset sends its Ctrl-C/B/D sequence again after this
 # a silent board would cut the boot short. CircuitPython also compiles the firmware's source at
 # boot: 4.3 s of an emulated Pico's time, up to 20 s of a busy computer's (docs/circuitpython.md).
 BOOT_WAIT_S = 60.0
+# A board that has said "soft reboot" after our Ctrl-D is restarting: its main.py is waited for
+# this long, not reset again, before soft_reset gives up. Its first line can take seconds: an
+# emulated Pico on a computer running three test workers and more took longer than 1.5 s (CI,
+# 2026-11-27), and the Ctrl-C of a second reset then cut that boot short as well.
+REBOOT_WAIT_S = 10.0
 _SOFT_REBOOT = b"soft reboot"
 _ANY_KEY = b"Press any key to enter the REPL"  # CircuitPython, after code.py ended
 # CircuitPython's line as it starts code.py, before a line of ours: it compiles the firmware's
@@ -41,6 +46,7 @@ _ANY_KEY = b"Press any key to enter the REPL"  # CircuitPython, after code.py en
 _CODE_PY = b"code.py output:"
 _BOOTING = P.BOOTING.encode()
 _PROMPT = b">>> "
+_RAW_REPL = b"raw REPL; CTRL-B to exit"
 _TEXT_KEPT = 65536  # what soft_reset keeps of the board's output while it waits
 
 
@@ -121,10 +127,13 @@ class BoardClient:
         (protocol.BOOTING), or CircuitPython saying it starts code.py: its hello is waited for up
         to BOOT_WAIT_S, the boot never interrupted.
         The REPL's prompt: nothing of ours runs (a board with MicroPython only, or main.py ended):
-        False at once. Anything else (silence, the raw REPL's banner, another main.py): the
-        sequence is sent again every RESET_RETRY_S while `wait` lasts; a tool killed halfway
-        through a transfer (mpremote in raw-paste mode) can leave the REPL where the first
-        sequence only ends the transfer, and the second one then resets."""
+        False at once. "soft reboot" and nothing more yet (not the raw REPL's banner): the
+        board restarts, and its main.py is given REBOOT_WAIT_S (at least `wait`) to say one of
+        the above, never reset again (False after that: another main.py, a silent one).
+        Anything else (silence, the raw REPL's banner): the sequence is sent again every
+        RESET_RETRY_S while `wait` lasts; a tool killed halfway through a transfer (mpremote in
+        raw-paste mode) can leave the REPL where the first sequence only ends the transfer, and
+        the second one then resets."""
         ser = self.serial
         deadline = time.monotonic() + wait
         try:
@@ -138,17 +147,22 @@ class BoardClient:
                 self._text = b""
                 ser.write(b"\x04")
                 retry = min(deadline, time.monotonic() + RESET_RETRY_S)
-                booting_until = None
-                while time.monotonic() < (booting_until or retry):
+                booting_until = rebooting_until = None
+                while time.monotonic() < (booting_until or rebooting_until or retry):
                     for frame in self._read_frames():
                         if frame.type == P.T_HELLO:
                             return True
-                    after = self._text[self._text.rfind(_SOFT_REBOOT) + 1:] if _SOFT_REBOOT in self._text else b""
+                    rebooted = _SOFT_REBOOT in self._text
+                    after = self._text[self._text.rfind(_SOFT_REBOOT) + 1:] if rebooted else b""
                     if booting_until is None and (_BOOTING in after or _CODE_PY in after):
                         booting_until = time.monotonic() + BOOT_WAIT_S
+                    if _RAW_REPL in after:
+                        rebooting_until = None  # a soft reboot inside the raw REPL: no main.py follows
+                    elif rebooted and rebooting_until is None:
+                        rebooting_until = max(deadline, time.monotonic() + REBOOT_WAIT_S)
                     if _PROMPT in after or _ANY_KEY in after:
                         return False  # booted to the REPL: no main.py of ours (a new board), or it ended
-                if booting_until is not None or time.monotonic() >= deadline:
+                if booting_until is not None or rebooting_until is not None or time.monotonic() >= deadline:
                     return False
         finally:
             self._text = None

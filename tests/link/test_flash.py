@@ -375,6 +375,20 @@ def test_a_board_with_micropython_only_is_told_apart_without_waiting_for_a_boot(
         assert time.monotonic() - t0 < board_client.BOOT_WAIT_S / 2
 
 
+def test_a_board_slow_to_start_its_main_py_is_waited_for_not_reset_again():
+    """An emulated Pico on a busy computer can take seconds from its "soft reboot" to the
+    firmware's first line (a CI run at three times its usual length failed `host sim --chip
+    rp2040` so: "no lsea-kit firmware answers"). Here main.py sleeps 2.5 s before the firmware
+    starts: soft_reset must wait for it rather than give up after its own `wait` and let
+    handshake's Ctrl-C cut the boot short again."""
+    with VirtualBoard(calibration=READY_CALIBRATION) as board:
+        main = board.root / "main.py"
+        main.write_text("import time\ntime.sleep(2.5)\n" + main.read_text())
+        with BoardClient(board.path, check=False) as client:
+            assert client.soft_reset() is True
+            assert client.handshake()["version"]
+
+
 def test_a_board_running_another_main_py_is_not_waited_for_as_a_booting_firmware():
     """Only our firmware's boot line (protocol.BOOTING) earns the long wait: a main.py of someone
     else's that never answers is given up on within soft_reset's own `wait`."""
