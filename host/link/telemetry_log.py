@@ -16,6 +16,8 @@ import json
 from pathlib import Path
 
 from firmware.protocol import FAULT_NAMES, FIELD_UNITS, FIELDS, MODES
+from host.calibration.file import keep_dated_copy
+from host.terminal import note
 
 # What each column is, for people (a new telemetry field must say it here: tests check); its unit
 # is the interface table's (firmware/protocol.py FIELD_UNITS)
@@ -73,6 +75,12 @@ class CsvLog:
 
     def __init__(self, path, status, rate):
         self.path = path
+        for existing in (Path(path), metadata_path(path)):
+            # a log aimed at a file that holds something (a calibration, by a slip of the hand,
+            # or an earlier run) keeps it, as every calibration writer does
+            kept = keep_dated_copy(existing)
+            if kept is not None:
+                note("%s existed: kept as %s" % (existing, kept.name))
         metadata_path(path).write_text(json.dumps(metadata(status, rate), indent=1) + "\n")
         self._file = open(path, "w", newline="")
         self._writer = csv.writer(self._file)

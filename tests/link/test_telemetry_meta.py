@@ -42,3 +42,16 @@ def test_host_log_writes_the_metadata_beside_the_csv(tmp_path, capsys):
     assert meta["faults"] == {str(b): n for b, n in FAULT_NAMES}
     data = load(out)  # the CSV itself stays a plain table
     assert len(data["t_us"]) >= 50 and set(data["mode"]) <= {int(k) for k in meta["modes"]}
+
+
+def test_host_log_onto_an_existing_file_keeps_it_under_a_dated_name(tmp_path, capsys):
+    """`host log --out cal.json` by a slip of the hand: the calibration must survive (a dated
+    copy beside it, as fit and calibrate keep one), and the command says where it went."""
+    cal = tmp_path / "cal.json"
+    write_model_calibration(cal, date="2026-03-03")
+    before = cal.read_bytes()
+    assert cli.main(["log", "--port", "sim", "--calibration", str(cal), "--seconds", "0.2", "--out", str(cal)]) == 0
+    kept = list(tmp_path.glob("cal.json.*.bak"))
+    assert len(kept) == 1 and kept[0].read_bytes() == before
+    assert cal.read_text().startswith(",".join(FIELDS))  # the log went where it was asked to
+    assert kept[0].name in capsys.readouterr().err
