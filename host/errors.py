@@ -68,6 +68,30 @@ def check_user_file(path, what, max_bytes):
         raise UserError("%s is %d bytes, larger than any %s (at most %d)" % (path, st.st_size, what, max_bytes))
 
 
+def check_output_file(path, what, make_folders=False):
+    """Refuse, before any work, a path a `what` (e.g. "calibration file") cannot be written to: a
+    directory, a folder that does not exist (unless the command makes its folders: then the
+    nearest one that does exist counts), or a folder this user cannot write (read-only, another
+    user's). A calibration that fails here costs a keystroke; one that fails when it is saved
+    costs the measuring before it."""
+    import os
+    from pathlib import Path
+
+    path = Path(path)
+    if path.is_dir():
+        raise UserError("%s is a directory, not a %s" % (path, what))
+    folder = path.absolute().parent
+    if not folder.exists() and not make_folders:
+        raise UserError("cannot write %s %s: no folder %s" % (what, path, folder))
+    while not folder.exists():
+        folder = folder.parent
+    if not folder.is_dir():
+        raise UserError("cannot write %s %s: %s is a file, not a folder" % (what, path, folder))
+    if not os.access(folder, os.W_OK | os.X_OK) or (path.exists() and not os.access(path, os.W_OK)):
+        raise UserError("cannot write %s %s: %s is not writable here (read-only, or another user's)"
+                        % (what, path, path if path.exists() else folder))
+
+
 def _installed_from():
     """Where pip installed this package from when it was a local directory (PEP 610's
     direct_url.json), else None (an index, a wheel file, or no record)."""

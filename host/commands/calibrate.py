@@ -185,6 +185,11 @@ def run(args):
 
     from host.guided.run_log import RunLog
 
+    from host.errors import check_output_file
+
+    check_output_file(args.out, "calibration file", make_folders=True)  # before anything is measured
+    if args.plots:
+        check_output_file(Path(args.plots) / "calibration-pot1.png", "plot", make_folders=True)
     made = _missing_folders(args.out) + (_missing_folders(Path(args.plots) / "x") if args.plots else [])
     log = RunLog(args.out, "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host calibrate")
     try:

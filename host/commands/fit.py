@@ -5,7 +5,7 @@ import math
 import time
 
 from host.commands._options import ranged
-from host.errors import DONE, UserError
+from host.errors import DONE, UserError, check_output_file
 from host.fitting.model_select import DEFAULT_BUDGET
 from host.fitting.models import MODELS
 from host.fitting.pot_fit import RMS_REFUSE, fit_sweep, poor_fit, refusals
@@ -88,6 +88,8 @@ def run(args):
             raise UserError("%s needs a named --model: auto chooses the model and its order (e.g. --model bcm %s)"
                             % (" and ".join(given), "--order 3" if args.order is not None else "--bounds paper"))
     say = (lambda msg: None) if args.json else note
+    if args.out:
+        check_output_file(args.out, "calibration file")  # before the fit, not after it
     sweep = load_sweep(args.sweep, full_scale=args.full_scale)
     t0 = time.perf_counter()
     result, floors, reason = fit_sweep(sweep, args.model, args.order, args.bounds or "data", args.budget, progress=say)

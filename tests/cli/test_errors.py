@@ -103,6 +103,11 @@ def test_show_of_two_files_names_missing_values_in_words(tmp_path, capsys):
     (["show", "DIR"], "is a directory, not a calibration file"),
     (["plot", "FIFO"], "is not a regular file"),  # was "no such file"; reading it would wait forever
     (["show", "BIG"], "larger than any calibration file"),
+    # where a calibration is to go, checked before the work (a review lost 42 s of measuring to it)
+    (["calibrate", "--port", "sim", "--yes", "--out", "DIR"], "is a directory, not a calibration file"),
+    (["calibrate", "--port", "sim", "--yes", "--out", "UNDER_A_FILE"], "is a file, not a folder"),
+    (["fit", "SWEEP", "--out", "DIR"], "is a directory, not a calibration file"),
+    (["fit", "SWEEP", "--out", "NO_FOLDER"], "no folder"),  # was an Errno naming a temporary file
 ])
 def test_user_files_are_checked_before_they_are_read(tmp_path, argv, words):
     """Each in a fresh process with a deadline: a regression hangs or eats the memory instead."""
@@ -117,7 +122,8 @@ def test_user_files_are_checked_before_they_are_read(tmp_path, argv, words):
     big = tmp_path / "big.json"
     with open(big, "wb") as f:
         f.truncate((1 << 20) + 1)  # sparse: a size, no disk
-    names = {"SWEEP": str(sweep), "DIR": str(tmp_path), "FIFO": str(fifo), "BIG": str(big)}
+    names = {"SWEEP": str(sweep), "DIR": str(tmp_path), "FIFO": str(fifo), "BIG": str(big),
+             "UNDER_A_FILE": str(sweep / "cal.json"), "NO_FOLDER": str(tmp_path / "nowhere" / "cal.json")}
     r = subprocess.run([sys.executable, "-m", "host", "-q"] + [names.get(a, a) for a in argv],
                        capture_output=True, text=True, timeout=120)
     err = r.stderr.strip().splitlines()
