@@ -77,8 +77,12 @@ class BoardPort:
                     raise UserError("a load can be hooked only on a virtual board (port sim); on a bench, hook it by hand")
                 self.virtual.set_load(self.load)
             return self
-        if self.calibration is not None and not Path(self.calibration).is_file():  # for either board started here
-            raise UserError("calibration file not found: %s" % self.calibration)
+        if self.calibration is not None:  # for either board started here: a file it could not use, named now
+            from host.calibration.file import read_calibration
+
+            if not Path(self.calibration).exists():
+                raise UserError("calibration file not found: %s" % self.calibration)
+            read_calibration(self.calibration)
         if chip == "rp2040":
             return self._open_pico()
         from host.link.flashing import resolve_board
