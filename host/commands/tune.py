@@ -89,6 +89,19 @@ def _line(tr, unit, scale):
         tr.verdict())
 
 
+def _pushed_to_a_stroke_end(board):
+    """(D2 mm, the end) when the block rests at a soft stroke limit after force trials that never
+    settled: force mode with no load drives it there (the trials stop the motor, it stays); else None."""
+    from host.guided import acquire
+
+    records = acquire.collect(board.client, 0.05)
+    if not len(records):
+        return None
+    d2_um = acquire.mean(records, "d2_um")
+    end = board.stroke_end(d2_um)
+    return (d2_um / 1000.0, end) if end else None
+
+
 def run(args):
     field, names, unit, scale = LOOPS[args.mode]
     start, step, band = DEFAULTS[args.mode]
@@ -116,6 +129,7 @@ def run(args):
                               band / scale, grid=grid, keep=args.apply or args.save, progress=progress)
         end_progress()
         saved = board.call("save") if args.save and chosen is not None else None
+        stroke_end = _pushed_to_a_stroke_end(opened) if chosen is None and args.mode == "force" else None
     png = plot(trials, chosen, args.mode, png)
     if args.json:
         rows = [dict(tr.response.as_dict(), gains=tr.gains, held=tr.held, verdict=tr.verdict()) for tr in trials]
@@ -125,7 +139,10 @@ def run(args):
         output("%s loop, step %g -> %g %s, band +-%g %s:" % (args.mode, start, start + step, unit, band, unit))
         for tr in trials:
             output(_line(tr, unit, scale))
-        if chosen is None:
+        if chosen is None and stroke_end:  # the usual mistake, said as host force says it
+            output("no gain set settled: the block ran to D2 = %.1f mm, at the soft stroke limit (%s): nothing to push "
+                   "against? hook a load (--port sim: --load gauge)" % stroke_end)
+        elif chosen is None:
             output("no gain set settled without oscillating or overshooting more than 20 %: try smaller gains")
         elif len(trials) > 1:
             kept = "kept on the board" + (" and saved" if saved is not None else "") if (args.apply or args.save) else \

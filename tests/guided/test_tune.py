@@ -92,3 +92,13 @@ def test_tune_force_against_the_gauge_on_the_virtual_board(calibration, tmp_path
     out = capsys.readouterr().out
     assert code == 0, out
     assert "force loop, step -1 -> -3 N" in out and "settles" in out and png.stat().st_size > 10000
+
+
+def test_tune_force_with_nothing_to_push_against_says_so(calibration, tmp_path, capsys):
+    """No load: force mode drives the block to a stroke end and nothing settles. The advice is
+    host force's ("hook a load"), not "try smaller gains", which would send a person tuning."""
+    code = cli.main(["tune", "force", "--port", "sim", "--calibration", calibration, "--duration", "0.5",
+                     "--png", str(tmp_path / "force.png")])
+    out = capsys.readouterr().out
+    assert code == 1, out
+    assert "nothing to push against" in out and "smaller gains" not in out, out
