@@ -96,10 +96,10 @@ PORT_HELP = ("serial port of the board (e.g. %s), 'sim' for a virtual board star
              "one board `host ports` finds)" % example_port())
 
 
-def add_uf2_argument(parser):
+def add_uf2_argument(parser, used_with="--port sim:rp2040"):
     from host.link.emulated_pico.board import UF2_HELP
 
-    parser.add_argument("--uf2", default=None, metavar="FILE", help="for --port sim:rp2040: " + UF2_HELP)
+    parser.add_argument("--uf2", default=None, metavar="FILE", help="for %s: %s" % (used_with, UF2_HELP))
 
 
 def add_port_arguments(parser):

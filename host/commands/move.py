@@ -11,7 +11,10 @@ from host.terminal import end_progress, output, progress_line
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("move", help="move the output block to a position (closed loop)")
+    p = subparsers.add_parser("move", help="move the output block to a position (closed loop)",
+                              description="Position mode to --to mm, until the block stays within --tolerance for 0.3 s of the "
+                              "board's time or --timeout passed; motor off after unless --hold. --log records the move's "
+                              "telemetry, --live shows it.")
     add_port_arguments(p)
     p.add_argument("--to", type=ranged(float, -STROKE_LIMIT_MM, STROKE_LIMIT_MM), required=True, metavar="MM", help="target position of the output block, mm (inside the board's soft stroke limits: host status shows them)")
     p.add_argument("--tolerance", type=ranged(float, 0.001, 60), default=0.2, metavar="MM", help="settled when within this, mm (default 0.2)")

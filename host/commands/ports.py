@@ -11,7 +11,11 @@ from host.terminal import output
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("ports", help="list serial ports and the boards on them (--port auto picks the only one)")
+    p = subparsers.add_parser("ports", help="list serial ports and the boards on them (--port auto picks the only one)",
+                              description="List the serial ports this computer sees, then the virtual boards `host sim` runs, "
+                              "each with its USB ids and the board its ids say it is (or not one we know); --probe asks each "
+                              "board-like port whether lsea-kit firmware answers. --port auto in the other commands picks "
+                              "the only board.")
     p.add_argument("--probe", action="store_true", help="ask each board-like port whether lsea-kit firmware answers")
     p.add_argument("--json", action="store_true", help="print the ports as a JSON list")
     p.set_defaults(func=run)

@@ -6,7 +6,9 @@ from host.terminal import output
 
 
 def add_parser(subparsers):
-    p = subparsers.add_parser("reset", help="clear latched faults (named first); motor off, mode idle")
+    p = subparsers.add_parser("reset", help="clear latched faults (named first); motor off, mode idle",
+                              description="Clear the board's latched faults (each is named first, with the last one's "
+                              "text), leaving the motor off and the mode idle. The calibration and saved parameters stay.")
     add_port_arguments(p)
     p.set_defaults(func=run)
 

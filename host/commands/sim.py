@@ -35,7 +35,7 @@ def add_parser(subparsers):
     p.add_argument("--uncalibrated", action="store_true", help="start without a calibration, as from the factory")
     p.add_argument("--root", default=None, help="directory to use as the unix-port board's flash (default: a temp dir, "
                    "removed at the end)")
-    add_uf2_argument(p)
+    add_uf2_argument(p, "--chip rp2040")
     p.add_argument("--actuator", default=None, metavar="FILE", help="--chip rp2040: the simulated actuator wired to the "
                    "Pico, a board file with an \"actuator\" section (default boards/sim.json)")
     p.add_argument("--flash-image", default=None, metavar="FILE", help="--chip rp2040: keep the Pico's filesystem in "
