@@ -53,14 +53,14 @@ class Sweep:
         return "%d of %d rows kept%s" % (len(self.x), self.n_input, " (excluded: %s)" % dropped if dropped else "")
 
 
-def _number(text, column, line):
+def _number(text, column, line, path):
     try:
         value = float(text)
     except (TypeError, ValueError):
-        raise UserError("line %d: %s value %r is not a number" % (line, column, text)) from None
+        raise UserError("line %d of %s: %s value %r is not a number" % (line, path, column, text)) from None
     if abs(value) > MAX_MAGNITUDE and math.isfinite(value):  # non-finite rows are dropped below
-        raise UserError("line %d: %s value %s is beyond +-%g: not a reading or a position in any unit"
-                        % (line, column, text, MAX_MAGNITUDE))
+        raise UserError("line %d of %s: %s value %s is beyond +-%g: not a reading or a position in any unit"
+                        % (line, path, column, text, MAX_MAGNITUDE))
     return value
 
 
@@ -93,10 +93,10 @@ def load_sweep(path, full_scale=None):
         cells = [c.strip() for c in row]
         if len(cells) <= max(ix, iy, idir if idir is not None else 0):
             raise UserError("line %d of %s has %d fields, the header has %d" % (line, path, len(cells), len(header)))
-        raw.append(_number(cells[ix], "raw", line))
-        ref.append(_number(cells[iy], "reference", line))
+        raw.append(_number(cells[ix], "raw", line, path))
+        ref.append(_number(cells[iy], "reference", line, path))
         if idir is not None:
-            d = _number(cells[idir], "direction", line)
+            d = _number(cells[idir], "direction", line, path)
             if d not in (1.0, -1.0):
                 raise UserError("line %d: direction must be +1 or -1, not %r" % (line, cells[idir]))
             direction.append(d)

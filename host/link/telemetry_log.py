@@ -133,6 +133,9 @@ def load(path, warn=None):
         raise UserError("%s is not a telemetry log (host log writes one): not text" % path) from None
     lines = text.splitlines()
     header = lines[0].strip().split(",") if lines else [""]
+    if header[0] != FIELDS[0]:  # a sweep, a calibration, anything else: said as what it is not
+        raise UserError("%s is not a telemetry log (host log writes one): its first line is %r, not the log's "
+                        "column names (%s,...)" % (path, lines[0][:40] if lines else "", FIELDS[0]))
     rows = lines[1:]
     if rows and not text.endswith("\n"):
         rows = rows[:-1]

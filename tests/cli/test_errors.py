@@ -11,6 +11,8 @@ from host import cli
     ("t_us,raw1,raw2\n", "no records"),
     ("hello\nworld\n", "not a telemetry log"),
     ("t_us,raw1\n1,2\n3\n", "not a telemetry log"),
+    ("raw,reference\n100,0.00\n", "not a telemetry log"),  # a pot sweep: was "could not convert string '0.00'"
+    ('{"crc32": 1}', "not a telemetry log"),  # was "no records (only a header)"
 ])
 def test_plot_of_a_bad_csv_is_one_line(tmp_path, capsys, content, words):
     path = tmp_path / "run.csv"

@@ -116,7 +116,7 @@ def test_twenty_five_points_is_enough():
         ("", "empty"),
         ("raw,reference\n", "no data rows"),
         ("raw,position\n1,2\n", "no 'reference' column"),
-        ("raw,reference\n1,2\nabc,3\n", "not a number"),
+        ("raw,reference\n1,2\nabc,3\n", "s.csv: raw value 'abc' is not a number"),  # names the file
         ("raw,reference\n" + "".join("%d,%d\n" % (i * 100, i) for i in range(MIN_POINTS - 1)), "usable points"),
         ("raw,reference\n" + "".join("%d,%d\n" % (1000 + i, i) for i in range(40)), "covers only"),
         ("raw,reference,direction\n" + "".join("%d,%d,2\n" % (i * 100, i) for i in range(40)), "direction"),
