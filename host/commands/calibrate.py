@@ -189,7 +189,7 @@ def run(args):
 
     check_output_file(args.out, "calibration file", make_folders=True)  # before anything is measured
     if args.plots:
-        check_output_file(Path(args.plots) / "calibration-pot1.png", "plot", make_folders=True)
+        check_output_file(Path(args.plots) / "plot.png", "plot", make_folders=True)
     made = _missing_folders(args.out) + (_missing_folders(Path(args.plots) / "x") if args.plots else [])
     log = RunLog(args.out, "host " + " ".join(sys.argv[1:]) if sys.argv[1:] else "host calibrate")
     try:

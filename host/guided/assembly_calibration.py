@@ -94,7 +94,7 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
              "peak_after_binned_mm": binned_peak(x, resid),
              "rms_after_mm": float(np.sqrt(np.mean(resid**2))), "n_samples": int(len(x))}
     section["fit"] = stats
-    png = opts.out_dir / "calibration-df.png"
+    png = opts.plot_path("df")
     curve = (lambda g: np.interp(g, table[0], table[1])) if table is not None else (lambda g: np.polyval(coeffs, g))
     plot_df(png, x, df, curve, resid, direction, "%d-knot table" % order if table is not None else "order %d" % order)
     data = {"d1_mm": x, "df_mm": df, "resid_mm": resid, "coeffs": coeffs, "direction": direction, "stats": stats}

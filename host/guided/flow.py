@@ -64,6 +64,11 @@ class Options:
     flash: bool = True
     fix: bool = False  # bringup: write and flash a corrected board file without asking
 
+    def plot_path(self, what):
+        """Where a step's plot goes: OUT-what.png in out_dir (calibration-pot1.png for
+        calibration.json), so two calibrations in one folder keep their own plots."""
+        return Path(self.out_dir) / ("%s-%s.png" % (Path(self.out).stem, what))
+
 
 def follow_the_actuator(opts, session):
     """Fill in what follows the actuator's stroke (host/guided/stroke.py) unless given: the stroke

@@ -267,7 +267,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n,
                "usable_n": usable}
     sections = force_sections(fit, drive, stats_f)
-    png = opts.out_dir / "calibration-force.png"
+    png = opts.plot_path("force")
     inside = np.zeros(len(d), dtype=bool)
     inside[np.flatnonzero(taut)[fit.left_out]] = True
     plot_force(png, d, f, s, fit, inside)

@@ -145,7 +145,7 @@ def calibrate_pots(session, rig, prompter, opts):
             if len(raw) < 20:
                 continue
         sweep, fit, floors, reason = fit_pot(raw, ref, direction, bits, opts.model, opts.order, opts.budget)
-        png = opts.out_dir / ("calibration-%s.png" % pot)
+        png = opts.plot_path(pot)
         plot_fit(png, sweep.x, sweep.y, fit, noise=floors.get("noise_floor"), direction=sweep.direction,
                  title="%s: %s order %d, rms %.1f um, max %.1f um" % (pot, fit.model, fit.order, 1000 * fit.rms, 1000 * fit.max_abs))
         plots.append(png)

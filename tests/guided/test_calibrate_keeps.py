@@ -190,3 +190,13 @@ def test_a_calibrate_that_never_started_leaves_no_folder_and_ctrl_c_leaves_a_log
     assert code == 1 and "before its first step" in err, err
     results = json.loads((out.parent / (out.stem + ".results.json")).read_text())
     assert results["stopped"] == {"phase": None, "why": "interrupted (Ctrl-C)"}
+
+
+def test_two_calibrations_in_one_folder_keep_their_own_plots(tmp_path):
+    """A review's two runs in one folder drew over each other's calibration-pot1.png: a plot is
+    named after the calibration it belongs to (calibration-pot1.png for calibration.json)."""
+    a = flow.Options(out=tmp_path / "left.json", out_dir=tmp_path)
+    b = flow.Options(out=str(tmp_path / "right.json"), out_dir=tmp_path)
+    assert a.plot_path("pot1") == tmp_path / "left-pot1.png"
+    assert b.plot_path("df") == tmp_path / "right-df.png"
+    assert flow.Options(out=tmp_path / "calibration.json", out_dir=tmp_path).plot_path("force") == tmp_path / "calibration-force.png"
