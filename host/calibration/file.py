@@ -169,6 +169,9 @@ def read_calibration(path, with_crc=False):
         raw = path.read_bytes()
     except OSError as e:
         raise UserError("cannot read %s: %s" % (path, e.strerror)) from None
+    if not raw.strip():
+        raise UserError("calibration file %s is empty (a copy that never finished? the dated .bak beside it, if "
+                        "any, is the one before)" % path)
     try:
         body, crc = parse_document(raw.decode("utf-8"))
     except UnicodeDecodeError:

@@ -112,6 +112,7 @@ def test_show_of_two_files_names_missing_values_in_words(tmp_path, capsys):
     (["fit", "SWEEP", "--out", "NO_FOLDER"], "no folder"),  # was an Errno naming a temporary file
     # a virtual board given a calibration it cannot use: named now, not "calibration.json unusable" later
     (["status", "--port", "sim", "--calibration", "TRUNCATED"], "TRUNCATED: not valid JSON"),
+    (["show", "EMPTY"], "EMPTY is empty"),  # was "not valid JSON"
 ])
 def test_user_files_are_checked_before_they_are_read(tmp_path, argv, words):
     """Each in a fresh process with a deadline: a regression hangs or eats the memory instead."""
@@ -128,9 +129,11 @@ def test_user_files_are_checked_before_they_are_read(tmp_path, argv, words):
         f.truncate((1 << 20) + 1)  # sparse: a size, no disk
     names = {"SWEEP": str(sweep), "DIR": str(tmp_path), "FIFO": str(fifo), "BIG": str(big),
              "UNDER_A_FILE": str(sweep / "cal.json"), "NO_FOLDER": str(tmp_path / "nowhere" / "cal.json"),
-             "TRUNCATED": str(tmp_path / "truncated.json")}
+             "TRUNCATED": str(tmp_path / "truncated.json"), "EMPTY": str(tmp_path / "empty.json")}
     (tmp_path / "truncated.json").write_text('{"crc32": 1, "payl')
-    words = words.replace("TRUNCATED", names["TRUNCATED"])
+    (tmp_path / "empty.json").write_text("")
+    for name in ("TRUNCATED", "EMPTY"):
+        words = words.replace(name, names[name])
     r = subprocess.run([sys.executable, "-m", "host", "-q"] + [names.get(a, a) for a in argv],
                        capture_output=True, text=True, timeout=120)
     err = r.stderr.strip().splitlines()
