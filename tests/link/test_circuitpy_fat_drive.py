@@ -29,6 +29,24 @@ BOARD = "pico_circuitpython"
 
 
 
+def formatted_within(image, offset, seconds, quiet_s=3.0):
+    """Wait until the flash image holds a FAT boot sector at `offset` and has not changed for
+    `quiet_s` (CircuitPython formats its drive at its first boot, then writes boot_out.txt; the
+    image is written through on every flash write)."""
+    import time
+
+    deadline = time.monotonic() + seconds
+    last, since = None, time.monotonic()
+    while True:
+        now, data = time.monotonic(), image.read_bytes()
+        if data != last:
+            last, since = data, now
+        elif data[offset:offset + 1] in (b"\xeb", b"\xe9") and now - since >= quiet_s:  # a FAT boot sector's jump
+            return
+        assert now < deadline, "CircuitPython did not format its drive and settle within %.0f s" % seconds
+        time.sleep(0.5)
+
+
 def status_after_boot(pico, tries=20):
     """`host status --json` once the firmware answers (CircuitPython compiles it at boot)."""
     for _ in range(tries):
@@ -61,6 +79,10 @@ def test_host_flash_drive_onto_circuitpythons_own_fat_then_the_board_runs_it(too
         # out of its box: CircuitPython formats the drive and writes boot_out.txt; no firmware of ours
         code, out, err = host("status", "--port", pico.path)
         assert code != 0 and "no lsea-kit firmware" in err, out + err
+        # the board is unplugged only once its drive is formatted and written, as a person waits
+        # for CIRCUITPY to appear: that can end seconds after the status above has given up (2 s
+        # later on 2026-11-27; stopping it sooner left the flash blank, "not a FAT partition")
+        formatted_within(image, nvm_bytes, 60.0)
 
     drive = dict(offset=nvm_bytes, size=1024 * 1024)  # the FAT volume after the nvm sector
     with fat_drive.mounted(image, **drive) as mounted:
