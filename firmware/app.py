@@ -131,6 +131,7 @@ class App:
         self.ctrl = Controller(self.sampler, None, self.motor, self.telemetry, self.safety, self.board["loop_hz"])
         cal, why = _load_calibration(calibration_path)
         self.calibration = None
+        self.force_range = None
         self.calibration_error = why
         if cal is not None:
             self.set_calibration(cal)
@@ -157,6 +158,7 @@ class App:
         self.ctrl.meas = None
         self.calibration = None
         self.ctrl.end_stops = None
+        self.force_range = None
         self.ctrl.apply_params()
         if cal is None:
             self.calibration_error = "no calibration loaded"
@@ -175,6 +177,7 @@ class App:
         self.calibration_error = None
         self.ctrl.meas = meas
         self.ctrl.end_stops = getattr(cal, "stroke", None)
+        self.force_range = getattr(cal, "force_range", None)  # [low_mN, high_mN] the calibration held, or None
         self.ctrl.apply_params()
 
     # --- commands (each one also counts as hearing from the host) ---------------------------
@@ -197,6 +200,7 @@ class App:
             "period_us": self.ctrl.period_us,
             "stroke_um": self.ctrl.stroke_limits,
             "end_stops_um": None if self.ctrl.end_stops is None else list(self.ctrl.end_stops),
+            "force_range_mN": None if self.force_range is None else list(self.force_range),
             "params_changed": self.params_table.changed_names(),
             "params_saved": self.params_table.saved(),
             "params_file_error": self.params_table.file_error,
@@ -276,6 +280,10 @@ class App:
         elif c.mode == FORCE:
             if not -FORCE_TARGET_MAX_MN <= value <= FORCE_TARGET_MAX_MN:
                 raise ValueError("force target must be within +-%d mN" % FORCE_TARGET_MAX_MN)
+            held = self.force_range  # beyond it F0 is the end of its fit: a target there would be a silent miss
+            if held is not None and not held[0] <= value <= held[1]:
+                raise ValueError("force target %d mN is beyond what the force calibration held (%d..%d mN): "
+                                 "the spring and motor were not shown to hold it" % (value, held[0], held[1]))
             c.set_force_target(value)
         c.target = value
 

@@ -24,7 +24,10 @@ spring whose stiffness changes at a point, see firmware/measurement.py), and the
 Coulomb friction, see firmware/measurement.py, and the duty that makes the motor hold the spring
 at that force, which position control adds to break the block free, see firmware/controller.py), and the optional "stroke" ({"kind": "stroke", "fixed": [low_um,
 high_um]}: where the output block's end stops are in its calibrated position D2, from which the
-controller keeps its soft stroke limits a margin inside, see firmware/controller.py).
+controller keeps its soft stroke limits a margin inside, see firmware/controller.py), and the
+optional "force_range" ({"kind": "force_range", "fixed": [low_mN, high_mN]}: the forces the force
+calibration showed the spring and motor hold, low < 0 < high; force mode refuses a target beyond
+them, where F0 is the end of its fit and not a measurement, see firmware/app.py).
 
 `load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
 integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
@@ -52,6 +55,7 @@ POLY_SECTIONS = ("df", "force", "force_inverse")
 TABLE_SECTIONS = ("df", "force", "force_inverse")  # may be pwl tables instead of polynomials
 FRICTION_SECTION = "friction"
 STROKE_SECTION = "stroke"
+FORCE_RANGE_SECTION = "force_range"
 STROKE_MAX_UM = 65535  # protocol.POSITION_LIMIT_UM (tested equal; this module stays free of the protocol): positions beyond it are clamped anyway
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
 FF_DUTY_MAX = 5000  # half the duty range: a feed-forward beyond it would be a runaway, not friction
@@ -231,11 +235,24 @@ def stroke_constants(section, name=STROKE_SECTION):
     return array("i", values)
 
 
+def force_range_constants(section, name=FORCE_RANGE_SECTION):
+    """array('i', [low_mN, high_mN]) of the forces the calibration held, checked; None when absent."""
+    if section is None:
+        return None
+    if not isinstance(section, dict) or section.get("kind", "force_range") != "force_range":
+        raise CalibrationError("section %s: not a force range section" % name)
+    values = _int_list(section, name)
+    _check(len(values) == 2, name, "needs [lowest force mN, highest force mN]")
+    _check(-LIMIT < values[0] < 0 < values[1] < LIMIT, name, "the range must hold 0 (lowest < 0 < highest)")
+    return array("i", values)
+
+
 class Calibration:
     """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None
     (df_kind, force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
-    as [low_um, high_um] or None. Data only, filled by `checked`: the App keeps it after the boot
-    has let this module go (portable.release), and a method would keep the whole module alive."""
+    as [low_um, high_um] or None, force_range as [low_mN, high_mN] or None. Data only, filled by
+    `checked`: the App keeps it after the boot has let this module go (portable.release), and a
+    method would keep the whole module alive."""
 
 
 def checked(body, crc):
@@ -254,6 +271,7 @@ def checked(body, crc):
     cal.force_inverse_kind = section_kind(body.get("force_inverse"))
     cal.friction = friction_constants(body.get(FRICTION_SECTION))
     cal.stroke = stroke_constants(body.get(STROKE_SECTION))
+    cal.force_range = force_range_constants(body.get(FORCE_RANGE_SECTION))
     cal.crc = crc
     cal.board = body.get("board")
     cal.date = body.get("date")

@@ -105,7 +105,7 @@ FAULT_NAMES = (
 
 # The keys of the `status` object (firmware/app.py App.status; tested equal), in host status's order
 STATUS_KEYS = ("version", "protocol", "board", "calibration_crc", "calibration_error", "mode", "faults", "last_fault",
-               "target", "duty", "stroke_um", "end_stops_um", "params_changed", "params_saved", "params_file_error",
+               "target", "duty", "stroke_um", "end_stops_um", "force_range_mN", "params_changed", "params_saved", "params_file_error",
                "params_restored", "params_temporary", "steps", "period_us", "step_us_max", "overruns", "timer",
                "interpreter", "mpy", "last_exit", "interface")
 

@@ -164,7 +164,7 @@ def write_replay_data(directory, steps=600, duty=3000, pots="pwl", board=None):
     firmware cases boot with, into `directory`; returns the path of the data file (read by
     testkit.replay.load). Calibrations: "model" (model_document), "pots_only" (no Df, force or
     friction), "other_board" (made for the pico), "stroke_low_shifted" and "stroke_high_shifted"
-    (end stops at -2/58 and 1/61 mm), and for pwl pots "falling" (pot 2's table with its
+    (end stops at -2/58 and 1/61 mm), "force_range" (forces held -12.5..+14 N), and for pwl pots "falling" (pot 2's table with its
     positions reversed: falls as the code rises) and "narrow" (tables for a 10-bit ADC), for
     bcm3 pots "wide" (input shift 0: a 29-bit ADC)."""
     from host.calibration.file import encode_document
@@ -177,7 +177,8 @@ def write_replay_data(directory, steps=600, duty=3000, pots="pwl", board=None):
                 "pots_only": {k: v for k, v in doc.items() if k not in ("df", "force", "force_inverse", "friction")},
                 "other_board": dict(doc, board="pico"),
                 "stroke_low_shifted": dict(doc, stroke={"kind": "stroke", "fixed": [-2000, 58000]}),
-                "stroke_high_shifted": dict(doc, stroke={"kind": "stroke", "fixed": [1000, 61000]})}
+                "stroke_high_shifted": dict(doc, stroke={"kind": "stroke", "fixed": [1000, 61000]}),
+                "force_range": dict(doc, force_range={"kind": "force_range", "fixed": [-12500, 14000]})}
     if doc["pot2"]["kind"] == "pwl":
         k = doc["pot2"]["fixed"]
         n = k[0]

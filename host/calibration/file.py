@@ -35,7 +35,9 @@ from firmware.calibration import (
     POT_SECTIONS,
     SCHEMA,
     STROKE_SECTION,
+    FORCE_RANGE_SECTION,
     CalibrationError,
+    force_range_constants,
     friction_constants,
     parse_document,
     payload_crc,
@@ -47,7 +49,7 @@ from firmware.pwl_fixed import DF_PWL_OFFSET
 from host.errors import UserError, check_user_file
 from host.calibration.fixed_export import export_force_table, export_poly, export_pot
 
-SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION)
+SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION, FORCE_RANGE_SECTION)
 MAX_FILE_BYTES = 1 << 20  # ours are a few KB (the board reads at most 64 KiB); 1 MiB is no calibration
 INFO_KEYS = ("board", "date", "pots")
 
@@ -90,6 +92,7 @@ def check_sections(doc):
             poly_constants(doc.get(name), name)
         friction_constants(doc.get(FRICTION_SECTION))
         stroke_constants(doc.get(STROKE_SECTION))
+        force_range_constants(doc.get(FORCE_RANGE_SECTION))
     except CalibrationError as e:
         raise UserError(str(e)) from None
 
@@ -200,7 +203,7 @@ def _set_section(doc, name, section):
 
 
 # measured through the pot curves: the end stops in their frame of positions, the rest through D1 and D2
-MEASURED_THROUGH_POTS = ("df", "force", "force_inverse", "friction", "stroke")
+MEASURED_THROUGH_POTS = ("df", "force", "force_inverse", "friction", "stroke", "force_range")
 
 
 class CalibrationFile:
@@ -344,6 +347,18 @@ def stroke_section(low_mm, high_mm, stats=None):
                "fixed": [low, high]}
     try:
         stroke_constants(section)
+    except CalibrationError as e:
+        raise UserError(str(e)) from None
+    return section
+
+
+def force_range_section(lowest_n, highest_n, stats=None):
+    """The forces the force calibration showed the spring and motor hold (N, lowest < 0 < highest):
+    force mode refuses a target beyond them (firmware/app.py)."""
+    section = {"kind": "force_range", "range_n": [float(lowest_n), float(highest_n)], "fit": stats or {},
+               "fixed": [int(round(lowest_n * 1000.0)), int(round(highest_n * 1000.0))]}
+    try:
+        force_range_constants(section)
     except CalibrationError as e:
         raise UserError(str(e)) from None
     return section

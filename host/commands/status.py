@@ -22,6 +22,7 @@ LABELS = {
     "duty": "duty (of 10000)",
     "stroke_um": "soft stroke limits on D2 (um)",
     "end_stops_um": "block's end stops in D2 (um)",
+    "force_range_mN": "force targets held (mN)",
     "params_changed": "parameters changed since boot",
     "params_saved": "saved parameters (boot values)",
     "params_file_error": "saved parameters problem",
@@ -65,12 +66,14 @@ def describe(status):
             value = ", ".join(value) if value else "none"
             if status.get("faults"):
                 value += "  (host reset clears them)"
-        elif key in ("stroke_um", "end_stops_um") and value:
+        elif key in ("stroke_um", "end_stops_um", "force_range_mN") and value:
             value = "%s .. %s" % tuple(value)
         elif key in ("params_changed", "params_temporary"):
             value = ", ".join(value) if value else "none"
         elif key == "params_saved" and value is not None:
             value = ", ".join("%s=%d" % kv for kv in sorted(value.items())) or "all defaults"
+        elif key == "force_range_mN" and value is None:
+            value = "not in the calibration (any target within +-200000)"
         if value is None:
             value = "none"
         lines.append("%-30s %s" % (label, value))

@@ -249,6 +249,37 @@ def case_stroke_limits_from_end_stops(path):
     return out
 
 
+def case_force_targets_within_the_range_held(path):
+    """Force mode takes targets within the forces the calibration held (its force_range section)
+    and refuses one beyond them, saying the range, with the target it had kept; a calibration
+    without the section takes any target the protocol allows."""
+    data = load(path)
+    app, _ = replay_app(data, calibration="force_range")
+    out = {"range": app.status()["force_range_mN"]}
+    app.set_mode("force")
+    accepted = []
+    for target in (-12500, 14000, 3000):
+        app.set_target(target)
+        accepted.append(app.status()["target"])
+    out["accepted"] = accepted
+    refused = []
+    for target in (-12501, 14001, -150000):
+        try:
+            app.set_target(target)
+            refused.append(None)
+        except ValueError as exc:
+            refused.append(str(exc))
+    out["refused"] = refused
+    out["kept"] = app.status()["target"]
+    app.set_mode("idle")
+    app.set_calibration(load_calibration(data))  # no force_range: only the protocol's +-200 N
+    app.set_mode("force")
+    app.set_target(-150000)
+    out["without"] = [app.status()["force_range_mN"], app.status()["target"]]
+    app.set_mode("idle")
+    return out
+
+
 def case_calibrations_for_another_adc_width(path, bcm3_path):
     """Pot constants exported for another ADC width than the board's are refused with the reason
     before any curve is evaluated: a 10-bit table, and a bcm3 with input shift 0, which declares

@@ -138,6 +138,16 @@ def test_the_soft_limits_stay_off_the_calibrated_end_stops(data_path):
     assert here["all_open"] == [1000 - 65535, 65535] and here["forgotten"] is None  # no limit inside the stroke
 
 
+def test_force_targets_beyond_the_range_the_calibration_held_are_refused(data_path):
+    here, there = both("case_force_targets_within_the_range_held(PATH)", data_path)
+    assert here == there
+    assert here["range"] == [-12500, 14000]
+    assert here["accepted"] == [-12500, 14000, 3000]  # the ends themselves are held forces
+    assert all(why is not None and "-12500..14000 mN" in why for why in here["refused"]), here["refused"]
+    assert here["kept"] == 3000  # a refused target leaves the last one in force
+    assert here["without"] == [None, -150000]
+
+
 def test_a_calibration_for_another_adc_width_is_refused_before_its_codes_are_scanned(data_path, bcm3_data_path):
     here, there = both("case_calibrations_for_another_adc_width(PATH, %r)" % bcm3_data_path, data_path)
     assert here == there
