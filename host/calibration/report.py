@@ -7,11 +7,13 @@ load, so "pot1 differs by 35 um at most" is what the two files would make the bo
 import numpy as np
 
 from firmware.calibration import (
+    FORCE_RANGE_SECTION,
     FRICTION_SECTION,
     POLY_SECTIONS,
     POT_SECTIONS,
     STROKE_SECTION,
     convert,
+    force_range_constants,
     friction_constants,
     poly_constants,
     pot_constants,
@@ -89,7 +91,9 @@ def describe_poly(section, name):
         name, POLY_NAMES.get(name, "polynomial"), shape, x[0], x[-1], units[0], int(y.min()), int(y.max()), units[1])]
     fit = {key: v for key, v in (section.get("fit") or {}).items() if isinstance(v, (int, float)) and not isinstance(v, bool)}
     if fit:
-        lines.append("  fit: " + ", ".join("%s %s" % (key, _num(v)) for key, v in sorted(fit.items())[:8]))
+        # a table's "knots" stat counts the fitted ones; the board's table adds its ends carried on to the range
+        lines.append("  fit: " + ", ".join("%s %s" % ("fitted knots" if key == "knots" else key, _num(v))
+                                           for key, v in sorted(fit.items())[:8]))
     return lines
 
 
@@ -115,6 +119,14 @@ def describe(doc, crc=None):
                      % (lo / 1000.0, hi / 1000.0, (hi - lo) / 1000.0))
     else:
         lines.append("end stops: not measured (the soft limits are the stroke_min_um/stroke_max_um parameters alone)")
+    if doc.get(FORCE_RANGE_SECTION):
+        lo, hi = force_range_constants(doc[FORCE_RANGE_SECTION])
+        assumed = (doc[FORCE_RANGE_SECTION].get("fit") or {}).get("assumed") or []
+        lines.append("force range: %+.2f .. %+.2f N (what the force step held; force mode refuses targets beyond)%s"
+                     % (lo / 1000.0, hi / 1000.0, "; the %s side was not measured and takes the other's" % (
+                         "negative" if -1 in assumed else "positive") if assumed else ""))
+    else:
+        lines.append("force range: not recorded (force mode takes any target within +-200 N)")
     return lines
 
 
@@ -135,7 +147,7 @@ def compare(a, b):
     for key in ("board", "date", "pots"):
         if a.get(key) != b.get(key):
             lines.append("%s: %s | %s" % (key, _shown(a.get(key)), _shown(b.get(key))))
-    for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION):
+    for name in POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION, FORCE_RANGE_SECTION):
         sa, sb = a.get(name), b.get(name)
         if not sa and not sb:
             continue
@@ -166,6 +178,9 @@ def compare(a, b):
         elif name == FRICTION_SECTION:
             fa, fb = friction_constants(sa)[0], friction_constants(sb)[0]
             lines.append("friction: %.3f N | %.3f N" % (fa / 1000.0, fb / 1000.0))
+        elif name == FORCE_RANGE_SECTION:
+            (la, ha), (lb, hb) = force_range_constants(sa), force_range_constants(sb)
+            lines.append("force range: %+.2f..%+.2f N | %+.2f..%+.2f N" % (la / 1000.0, ha / 1000.0, lb / 1000.0, hb / 1000.0))
         else:
             (la, ha), (lb, hb) = stroke_constants(sa), stroke_constants(sb)
             lines.append("end stops: %.3f..%.3f mm | %.3f..%.3f mm" % (la / 1000.0, ha / 1000.0, lb / 1000.0, hb / 1000.0))

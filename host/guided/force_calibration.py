@@ -17,6 +17,7 @@ import time
 
 import numpy as np
 
+from host.calibration.file import force_range_section
 from host.errors import UserError
 from host.fitting.force import fit_force, hysteresis_n
 from host.guided.force_identification import (SIDES, TAUT_N, check_gauge_follows, force_sections, identify,
@@ -32,6 +33,23 @@ CAVITY_NEAR_MM = 1.8  # |d| beyond this: the nut is near the cavity wall, F0(d) 
 def gauge_sides(choice):
     """The gauge sides a --gauge-sides choice runs, in order."""
     return ("high", "low") if choice == "both" else (choice,)
+
+
+def held_range(usable):
+    """(the force_range section, its line) from {gauge side: the force magnitude it held below any
+    hard contact, N}: the board refuses force targets beyond it. A side the gauge was not hooked on
+    takes the other's magnitude, and the line says it was not measured (the spring pair and the
+    motor are alike both ways, but nobody saw it)."""
+    measured = {SIDES[side]: float(n) for side, n in usable.items() if n and n > 0}
+    if not measured:
+        return None, "force: no side held a force: the board keeps the protocol's +-200 N as its range"
+    reach = {sign: measured.get(sign, max(measured.values())) for sign in (-1, 1)}
+    assumed = [sign for sign in (-1, 1) if sign not in measured]
+    section = force_range_section(-reach[-1], reach[1], {"measured": [sign for sign in (-1, 1) if sign in measured],
+                                                          "assumed": assumed})
+    return section, "force: targets %+.1f .. %+.1f N are taken (what the force step held%s); beyond them force mode " \
+        "refuses" % (-reach[-1], reach[1], "; the %s side was not measured and takes the other's" % (
+            "negative" if assumed == [-1] else "positive") if assumed else "")
 
 
 def slack_position_mm(anchor_mm, side, gap_mm=1.5):
@@ -267,6 +285,8 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
                "tare_n": tares, "sides": list(sides), "rms_without_friction_n": plain.rms_n,
                "usable_n": usable}
     sections = force_sections(fit, drive, stats_f)
+    sections["force_range"], line = held_range(usable)
+    lines.append(line)
     png = opts.plot_path("force")
     inside = np.zeros(len(d), dtype=bool)
     inside[np.flatnonzero(taut)[fit.left_out]] = True

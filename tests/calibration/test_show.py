@@ -3,7 +3,7 @@
 import json
 
 from host import cli
-from host.calibration.file import poly_section, write_calibration
+from host.calibration.file import force_range_section, poly_section, write_calibration
 
 from tests.calibration.test_calibration_file import full_document
 
@@ -22,8 +22,21 @@ def test_show_says_what_the_file_holds(tmp_path, capsys):
     for text in ("board pico", "pot ids: pot1=pot-A, pot2=pot-B", "pot1: bcm", "pot2: lut", "pwl on the board", "codes 0..4095",
                  "df: Df_hat(D1)", "force: F0(d)", "um -> ", " mN", "force_inverse: none", "friction: none", "CRC "):
         assert text in out, (text, out)
+    assert "force range: not recorded (force mode takes any target within +-200 N)" in out
     assert cli.main(["show", str(path), "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["board"] == "pico"
+
+
+def test_show_says_which_force_targets_the_board_takes(tmp_path, capsys):
+    held = force_range_section(-12.4, 12.4, {"measured": [-1], "assumed": [1]})
+    a = write(tmp_path / "a.json", force_range=held)
+    assert cli.main(["show", str(a)]) == 0
+    out = capsys.readouterr().out
+    assert "force range: -12.40 .. +12.40 N (what the force step held; force mode refuses targets beyond); the positive " \
+           "side was not measured" in out, out
+    b = write(tmp_path / "b.json", force_range=force_range_section(-15.0, 14.0))
+    assert cli.main(["show", str(a), str(b)]) == 0
+    assert "force range: -12.40..+12.40 N | -15.00..+14.00 N" in capsys.readouterr().out
 
 
 def test_show_compares_two_files_as_the_board_computes_them(tmp_path, capsys):

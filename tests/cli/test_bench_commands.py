@@ -84,6 +84,15 @@ def test_positive_force_on_port_sim_settles_against_a_gauge_on_the_low_side(cali
     assert abs(float(out.split()[2]) - 5.0) <= 0.1
 
 
+def test_a_force_beyond_what_the_calibration_held_is_refused_in_one_line(capsys):
+    """The ready calibration's force step held about 17.9 N a side: -150 N (which the protocol's
+    +-200 N allows) is refused by the board with the range, not run to the end of F0's table."""
+    code = cli.main(["force", "--port", "sim", "--load", "gauge", "--target", "-150"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2 and len(err.splitlines()) == 1, err
+    assert "force target -150000 mN is beyond what the force calibration held (-1" in err, err
+
+
 def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, capsys):
     # Nothing to push against: the block runs toward 0 mm until the soft stroke limit holds it
     # (Fig. 8 of the paper), and the force never builds up. Measured and missed: status 1, as host move.

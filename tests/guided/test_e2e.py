@@ -35,8 +35,11 @@ def test_every_step_is_accepted_written_and_verified(full_run):
     assert list(accepted) == ["bringup", "pots", "assembly", "force"]
     assert json.loads(out.with_name(out.stem + ".bringup.json").read_text())["ok"]
     doc = read_calibration(out)  # CRC and every section checked by the firmware's own parser
-    for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction", "stroke"):
+    for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction", "stroke", "force_range"):
         assert doc[name] and doc[name]["fixed"], name
+    # the board takes force targets within what the force step held on each side (about 17.9 N here)
+    lo, hi = doc["force_range"]["range_n"]
+    assert -20.0 < lo < -15.0 and 15.0 < hi < 20.0 and doc["force_range"]["fit"]["assumed"] == [], doc["force_range"]
     # positions are measured from the block's end stops (their middle is 30 mm): pot 2 of
     # boards/sim.json is mounted true, so the stops come out at 0 and 60 mm of D2
     lo, hi = doc["stroke"]["end_stops_mm"]
