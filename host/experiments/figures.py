@@ -101,6 +101,15 @@ class Table1(OneField):
 
 
 @dataclass
+class Table1Refused(OneField):
+    """The paper's force steps not run: beyond the force the force step held on their side, which
+    the board refuses ({side, target, reached_n} each)."""
+
+    KEY = "table1_refused"
+    rows: list
+
+
+@dataclass
 class HeldOut(Figure):
     """What the calibration never saw (host/experiments/held_out.py), filled phase by phase: Df on a
     validation sweep, positions and forces drawn with `seed`. The targets are judged on these."""

@@ -50,11 +50,19 @@ def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s
 IN_RANGE = 0.9  # a step beyond this share of the force the calibration reached on its side is out of its range
 
 
+def beyond_reach(magnitudes, reached_n):
+    """The magnitudes beyond `reached_n`, the force the force step held on their side: the board
+    refuses them (the calibration's force_range, firmware/app.py), so they are not run."""
+    return list(dict.fromkeys(m for m in magnitudes if reached_n is not None and m > reached_n))
+
+
 def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS_N, settle_s=1.5, reached_n=None):
     """Rows of one force-step sequence against the gauge on `side` (sign of the targets from it).
-    `reached_n`: the largest force the force step measured on that side; a row whose target is
-    beyond IN_RANGE of it says so ("in_range": False): the spring and motor were not shown to
-    hold it, and the calibration's F0 there is its fit's end, not a measurement."""
+    `reached_n`: the largest force the force step measured on that side; magnitudes beyond it are
+    left out (beyond_reach), and a row whose target is beyond IN_RANGE of it says so ("in_range":
+    False): the spring and motor were shown to hold it, but it is the last stretch of what F0 was
+    measured over."""
+    magnitudes = [m for m in magnitudes if m not in beyond_reach(magnitudes, reached_n)]
     targets = [SIDES[side] * m for m in magnitudes]
     _, measured, estimates = hold_sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
                                        "%s-side steps" % side, preload=True)

@@ -16,6 +16,7 @@ from host.experiments import displacement, figures, force_runs, held_out, model_
 from host.guided import stroke
 from host.guided.flow import BRINGUP, STEPS, run_steps
 from host.guided.force_calibration import gauge_sides
+from host.guided.force_identification import SIDES
 from host.guided.friction_trim import PRELOAD_N
 
 
@@ -261,9 +262,16 @@ class PaperRun:
     def table1(self, results):
         self.say("== Table 1: force steps ==")
         reached = self._reached()
-        return [figures.Table1([row for side in gauge_sides(self.opts.gauge_sides)
+        sides = gauge_sides(self.opts.gauge_sides)
+        refused = [{"side": side, "target": SIDES[side] * m, "reached_n": reached[side]}
+                   for side in sides for m in force_runs.beyond_reach(force_runs.STEPS_N, reached[side])]
+        for x in refused:
+            self.say("  %+.0f N on the %s side is not run: beyond the %.1f N the force step held there" % (
+                x["target"], x["side"], x["reached_n"]))
+        return [figures.Table1([row for side in sides
                                 for row in force_runs.force_steps(self.session, self.rig, self.prompter, self.opts.anchor_mm,
-                                                                  side, reached_n=reached[side])])]
+                                                                  side, reached_n=reached[side])]),
+                figures.Table1Refused(refused)]
 
     def held_out_forces(self, results):
         """Force steps at forces drawn fresh, away from those the trim and its F0 check held."""

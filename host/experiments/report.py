@@ -293,10 +293,17 @@ def _table1_section(add, r):
     add("")
     beyond = [x for x in t1 if not x.get("in_range", True)]
     if beyond:
-        add("**Out of the calibrated range:** %s N lie beyond 90 %% of the force the force step measured on their side: "
-            "the spring and motor were not shown to hold them there, and F0 there is the end of its fit, not a "
-            "measurement. They are reported, not judged (the targets are judged on held-out forces within 15-90 %% of "
-            "each side's range)." % ", ".join("%+.0f" % x["target"] for x in beyond))
+        add("**Near the end of the calibrated range:** %s N lie beyond 90 %% of the force the force step measured on "
+            "their side: F0 there is the last stretch of what it was measured over. They are reported, not judged "
+            "(the targets are judged on held-out forces within 15-90 %% of each side's range)."
+            % ", ".join("%+.0f" % x["target"] for x in beyond))
+        add("")
+    refused = r.get("table1_refused") or []
+    if refused:
+        add("**Not run:** %s: beyond the force the force step held on that side, which the board refuses as a "
+            "target (the calibration's force range): the spring and motor were not shown to hold it."
+            % "; ".join("%+.0f N (%s side, held %.1f N)" % (x["target"], "60 mm" if x["side"] == "high" else "0 mm",
+                                                           x["reached_n"]) for x in refused))
         add("")
     add("Steady-state error = (gauge - target) / |target|; estimation error = (firmware estimate - gauge) / |gauge|. "
         "The gauge was tared with the fibre slack before and after each sequence (readings against the tare "

@@ -150,7 +150,25 @@ def test_a_step_beyond_the_calibrated_range_is_said_to_be_so(tmp_path):
         row["in_range"] = abs(row["target"]) <= 0.9 * 15.5
     text = report.write(tmp_path, results, SimpleNamespace()).read_text()
     assert "(beyond 90 % of the 15.5 N the force step reached on this side)" in text
-    assert "**Out of the calibrated range:** -15, +15 N" in text
+    assert "**Near the end of the calibrated range:** -15, +15 N" in text
+    assert "**Not run:**" not in text
+
+
+def test_a_step_beyond_what_the_force_step_held_is_not_run_and_said_so(tmp_path):
+    """On a spring whose force step held 12.0 N on the 0 mm side, +15 N is left out of the
+    sequence (the board would refuse it) and the report names it with the reason."""
+    from types import SimpleNamespace
+
+    from host.experiments import force_runs, report
+
+    assert force_runs.beyond_reach(force_runs.STEPS_N, 12.0) == [15.0]
+    assert force_runs.beyond_reach(force_runs.STEPS_N, 9.0) == [10.0, 15.0]
+    assert force_runs.beyond_reach(force_runs.STEPS_N, None) == []
+    results = _results(0.05, 0.05, 1.0)
+    results["table1"] = [row for row in results["table1"] if row["target"] != 15.0]
+    results["table1_refused"] = [{"side": "low", "target": 15.0, "reached_n": 12.0}]
+    text = report.write(tmp_path, results, SimpleNamespace()).read_text()
+    assert "**Not run:** +15 N (0 mm side, held 12.0 N): beyond the force the force step held" in text
 
 
 @pytest.mark.parametrize("failure", [TimeoutError("no reply to stream"), KeyboardInterrupt()], ids=["board-gone", "ctrl-c"])
