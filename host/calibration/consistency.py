@@ -71,14 +71,22 @@ def _knots(section, name):
                         table_knots - len(pairs) > EXTRA_KNOTS and _off_the_lines(pairs, board_um) > KNOT_TOLERANCE_UM):
         return ["%s lists %d knots for a table of %d" % (name, len(pairs), table_knots)]
     worst, where = 0.0, None
+    last = len(board_um) - 1
     for x, y in pairs:
-        code = min(max(int(round(x)), 0), len(board_um) - 1)
-        miss = abs(board_um[code] - y * 1000.0)
+        # the board reads whole codes: a knot between two of them (the export keeps 1/16 code) says
+        # nothing the board contradicts while its position lies between the two codes' positions.
+        # Rounding to the nearer code refused a fitted pot whose knee put two knots 0.28 codes and
+        # 0.3 mm apart (seed 202611271100)
+        below, above = min(max(math.floor(x), 0), last), min(max(math.ceil(x), 0), last)
+        lo, hi = sorted((board_um[below], board_um[above]))
+        miss = max(lo - y * 1000.0, y * 1000.0 - hi, 0.0)
         if miss > worst:
-            worst, where = miss, (x, y)
+            worst, where = miss, (x, y, below, above)
     if worst > KNOT_TOLERANCE_UM:
-        return ["%s's knots say %.6g mm at code %.0f, its table gives %.3f mm"
-                % (name, where[1], where[0], board_um[min(max(int(round(where[0])), 0), len(board_um) - 1)] / 1000.0)]
+        x, y, below, above = where
+        return ["%s's knots say %.6g mm at code %.6g, its table gives %s" % (
+            name, y, x, "%.3f mm" % (board_um[below] / 1000.0) if below == above else
+            "%.3f-%.3f mm at codes %d-%d" % (board_um[below] / 1000.0, board_um[above] / 1000.0, below, above))]
     return []
 
 

@@ -57,3 +57,20 @@ def test_a_long_line_split_by_the_export_lists_its_two_knots_and_a_bent_table_ca
                                                                            bent["coefficients"]["knots_y"][-1]]})
     said = contradictions({"board": "sim", "pot1": ends}, BOARD)
     assert len(said) == 1 and "lists 2 knots for a table of" in said[0], said
+
+
+def test_knots_between_two_codes_are_judged_against_both_codes_positions():
+    """A fitted pot whose knee put two knots 0.28 codes and 0.29 mm apart (the knots of seed
+    202611271100's pot 2, whose calibration the flash refused mid-experiment): the board reads
+    whole codes, so a knot between codes 185 and 186 agrees with any position between theirs."""
+    kx = [180.0, 185.18914838728105, 185.46976832190026, 197.8841414382282, 222.57965257317647, 268.14660068754444,
+          339.5715163072671, 429.4444128742105, 3478.280123310009, 3601.980515725182, 3698.697408941289, 3768.0]
+    ky = [-0.17401954651221424, -0.16334934074488866, 0.13153991936401982, 0.9459514186352943, 1.9558155566553301,
+          3.2009536912052563, 4.623333200649134, 6.008077921147455, 44.94693498081846, 46.739171152372194,
+          48.3502691498051, 49.70890783523511]
+    section = pot_section(pwl_fit(kx, ky), 12)
+    assert contradictions({"board": "sim", "pot2": section}, BOARD) == []
+    # a knot 0.3 mm beyond both neighbouring codes' positions is still a contradiction
+    wrong = dict(section, coefficients=dict(section["coefficients"], knots_y=ky[:2] + [ky[2] + 0.3] + ky[3:]))
+    said = contradictions({"board": "sim", "pot2": wrong}, BOARD)
+    assert len(said) == 1 and "knots say 0.43154 mm at code 185.47, its table gives" in said[0], said
