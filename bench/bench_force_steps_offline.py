@@ -20,7 +20,11 @@ levenberg_marquardt.py says more.)
 With --exact the identified calibration is replaced by an exact model calibration of that board
 (testkit/model.py write_model_calibration): F0 tabled against the deformation the firmware
 measures (the pots' mount errors and the Df travel included, the block where the gauge holds it
-for that force) and the friction section equal to the board's true coulomb_n.
+for that force) and the friction section equal to the board's true coulomb_n; with --trim too,
+that friction is then trimmed in closed loop as the guided calibration trims its own (what is left
+is the loop's share, without the calibration's). The pot tables span the board's own stroke (a
+drawn board's is 40-80 mm; until stop 41 they spanned 0-60 mm, and --exact on drawn boards read
+nonsense).
 
 Call (from the repository root, the venv's python):
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact | --refit] [--trim] [--anchors UM,UM] [SEED ...]

@@ -67,7 +67,8 @@ def exact_calibration(board_path, out_path):
     w = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 1)
     m1 = w.pots[0].mount_error_mm
     m2 = w.pots[1].mount_error_mm
-    xs = np.linspace(-1, 61, 6201)
+    lo, hi = model.stroke_of(board)
+    xs = np.linspace(lo - 1.0, hi + 1.0, int(round((hi - lo + 2.0) * 100)) + 1)
     d1g = xs + np.array([m1(x) for x in xs])
     dfg = d1g - (xs + np.array([m2(x) for x in xs]))
     kg = float(board["actuator"]["gauge"]["stiffness_n_per_mm"])
@@ -205,7 +206,11 @@ def calibration(runs, seed, exact, tmp):
         return board, None
     board = as_run(runs, seed, board, tmp)
     if exact:
-        return board, exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
+        cal = exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
+        if RUN.trim:  # the exact F0 with h trimmed in closed loop, as the guided calibration trims its own
+            out = os.path.join(tmp, "exact-trim-%s.json" % seed)
+            cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
+        return board, cal
     if not os.path.exists(cal):
         return board, None
     if RUN.refit:

@@ -36,10 +36,16 @@ def spring_forces(board, d_mm):
     return np.array([world.spring_force(v) for v in np.asarray(d_mm, dtype=float)])
 
 
+def stroke_of(board):
+    """(low, high) mm: the block's stroke in the simulated actuator of `board`."""
+    lo, hi = board["actuator"]["block"]["stroke_mm"]
+    return float(lo), float(hi)
+
+
 SPRING_ORDER = 7  # the model calibration's F0(d) and d(F0) polynomials
 
 
-def model_sections(board=None, n_points=61, feed_forward=False):
+def model_sections(board=None, n_points=None, feed_forward=False):
     """The sections pot1, pot2 (pwl tables), df, force, force_inverse and friction, each
     {"kind", "fixed"} as the firmware reads them; with `feed_forward` the friction section also
     holds the duty at which the stalled motor holds the spring at the friction force."""
@@ -48,7 +54,8 @@ def model_sections(board=None, n_points=61, feed_forward=False):
     board = board or sim_board()
     world = _world(board, 1)
     bits = board["adc_bits"]
-    xs = np.linspace(0.0, 60.0, n_points)
+    lo, hi = stroke_of(board)  # 0-60 mm on boards/sim.json; drawn boards' are 40-80 mm, some below 0
+    xs = np.linspace(lo, hi, n_points or int(round(hi - lo)) + 1)  # a knot a millimetre
     codes = {"pot1": [], "pot2": []}
     travel = {"pot1": [], "pot2": []}
     for x in xs:
@@ -91,7 +98,7 @@ def bcm3_pot_fits(board, noisy=False, seed=1):
     from host.fitting.models import fit_model
 
     world = _world(board, seed)
-    xs = np.linspace(0.0, 60.0, 601)
+    xs = np.linspace(*stroke_of(board), 601)
     fits = {}
     for i, name in enumerate(("pot1", "pot2")):
         codes, travel = [], []

@@ -75,3 +75,23 @@ def test_the_firmware_starts_its_soft_limits_inside_the_board_files_stroke(tmp_p
     for bad in ([0, 80], [5, 5], "0-45", [0]):
         with pytest.raises(BoardError, match="stroke_mm"):
             check_board(dict(board, stroke_mm=bad))
+
+
+@pytest.mark.parametrize("length,low", [(45.0, 0.0), (80.0, -22.0)])
+def test_the_model_calibration_spans_the_boards_own_stroke(length, low):
+    """testkit.model's exact pot tables (the offline benches' --exact, the firmware tests) follow
+    the block over the board's stroke: at each end the table gives where the wiper is (until stop
+    41 they spanned 0-60 mm, and a drawn 43 mm actuator read 2-7 % force errors that were the
+    tables', not the loop's)."""
+    from boards.sim.actuator import Actuator
+    from firmware.pwl_fixed import pwl
+    from testkit import model
+
+    board = with_stroke(model.sim_board(), length, low)
+    sections = model.model_sections(board)
+    world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 1)
+    for x in (low + 0.5, low + length / 2.0, low + length - 0.5):
+        world.place(x)
+        for i, name in enumerate(("pot1", "pot2")):
+            travel_um = 1000.0 * (x + world.pots[i].mount_error_mm(x))
+            assert abs(pwl(world.true_code(name), sections[name]["fixed"]) - travel_um) < 40.0, (name, x)
