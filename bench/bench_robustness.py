@@ -4,6 +4,7 @@ experiments on each, pass rates per target, judged on the held-out figures.
     .venv/bin/python bench/bench_robustness.py --fresh [--draws 12] --out out/rob --doc docs/robustness.md
     .venv/bin/python bench/bench_robustness.py --seed 1 [--draws 8] ...   # the development seeds 1000-1007
     .venv/bin/python bench/bench_robustness.py --only-seed 2026112603     # rerun one draw
+    .venv/bin/python bench/bench_robustness.py --fresh --hour 2026112711 --reuse ...  # finish that hour's run
 
 Seeds. Draw i uses seed SEED*1000+i with `--seed` (default 1: seeds 1000-1007, which at least six
 fixes were made against: development data, not evaluation). `--fresh` draws an evaluation base
@@ -132,6 +133,9 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=1, help="draw i uses seed SEED*1000+i (default 1: the development seeds)")
     ap.add_argument("--fresh", action="store_true",
                     help="evaluation seeds from the date and hour, YYYYMMDDHH*100+i, printed")
+    ap.add_argument("--hour", type=int, metavar="YYYYMMDDHH",
+                    help="with --fresh: the hour whose seeds to draw (default: now), to finish an evaluation run "
+                         "with --reuse after its hour")
     ap.add_argument("--only-seed", type=int, help="run just this draw's seed")
     ap.add_argument("--no-base", action="store_true", help="skip the boards/sim.json row")
     ap.add_argument("--out", default="out/robustness", help="where the boards and runs go")
@@ -147,7 +151,7 @@ def main(argv=None):
     if a.only_seed is not None:
         seeds = [a.only_seed]
     elif a.fresh:
-        base = int(time.strftime("%Y%m%d%H")) * 100
+        base = (a.hour if a.hour is not None else int(time.strftime("%Y%m%d%H"))) * 100
         seeds = [base + i for i in range(a.draws)]
         print("evaluation seeds %d-%d (from the date and hour: none was run before this hour)" % (seeds[0], seeds[-1]),
               file=sys.stderr)
