@@ -60,7 +60,7 @@ def exact_calibration(board_path, out_path):
     import numpy as np
 
     from boards.sim.actuator import Actuator
-    from host.calibration.file import force_table_section
+    from host.calibration.file import force_table_section, friction_section
     from testkit import model
 
     board = json.load(open(board_path))
@@ -83,7 +83,12 @@ def exact_calibration(board_path, out_path):
     dm = d1 - np.interp(d1, d1g, dfg) - (x2 + np.array([m2(x) for x in x2]))
     sec_f = force_table_section(dm, f, (-2.0, 2.0), ("um", "mN"))
     sec_i = force_table_section(f, dm, (-25.0, 25.0), ("mN", "um"))
-    model.write_model_calibration(out_path, board=board, force=sec_f, force_inverse=sec_i)
+    h = float(board["actuator"]["block"]["coulomb_n"])  # in the host's form, which --trim reads and rewrites
+    # pot tables with a knot every 1/8 mm: within a micrometre of the pots between knots (a knot a
+    # millimetre strays up to 30 um near the knees, 0.4 N of a 13 N/mm spring)
+    pots = model.model_sections(board, n_points=int(round((hi - lo) * 8)) + 1)
+    model.write_model_calibration(out_path, board=board, pot1=pots["pot1"], pot2=pots["pot2"], df=pots["df"],
+                                  force=sec_f, force_inverse=sec_i, friction=friction_section(h))
     return out_path
 
 
