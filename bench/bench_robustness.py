@@ -86,8 +86,9 @@ def figures(results):
         forces = ho.get("forces") or []
         held = ("%.1f / %.1f" % (max(abs(x["steady_pct"]) for x in forces), max(abs(x["estimation_pct"]) for x in forces))
                 if forces else "-")
-        f["force %"] = "%s (5/10/15 N %.1f / %.1f; %d held-out steps)" % (
-            held, max(abs(x["steady_pct"]) for x in t1), max(abs(x["estimation_pct"]) for x in t1), len(forces))
+        own = ("%.1f / %.1f" % (max(abs(x["steady_pct"]) for x in t1), max(abs(x["estimation_pct"]) for x in t1))
+               if t1 else "none run: beyond the force range")
+        f["force %"] = "%s (5/10/15 N %s; %d held-out steps)" % (held, own, len(forces))
     if "stopped" in results:
         f["stopped"] = "%s: %s" % (results["stopped"]["phase"], results["stopped"]["why"])
     return f
@@ -134,8 +135,8 @@ def main(argv=None):
     ap.add_argument("--fresh", action="store_true",
                     help="evaluation seeds from the date and hour, YYYYMMDDHH*100+i, printed")
     ap.add_argument("--hour", type=int, metavar="YYYYMMDDHH",
-                    help="with --fresh: the hour whose seeds to draw (default: now), to finish an evaluation run "
-                         "with --reuse after its hour")
+                    help="with --fresh --reuse: the hour whose seeds to draw (default: now), to finish an evaluation "
+                         "run after its hour (its seeds are not fresh any more, so --reuse is required)")
     ap.add_argument("--only-seed", type=int, help="run just this draw's seed")
     ap.add_argument("--no-base", action="store_true", help="skip the boards/sim.json row")
     ap.add_argument("--out", default="out/robustness", help="where the boards and runs go")
@@ -144,6 +145,8 @@ def main(argv=None):
                     help="keep the rows whose run already finished in --out (results.json there): an interrupted bench "
                          "goes on where it stopped")
     a = ap.parse_args(argv)
+    if a.hour is not None and not (a.fresh and a.reuse):
+        ap.error("--hour finishes an evaluation run: it needs --fresh and --reuse")
     board = json.loads((REPO / "boards" / "sim.json").read_text())
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -153,7 +156,8 @@ def main(argv=None):
     elif a.fresh:
         base = (a.hour if a.hour is not None else int(time.strftime("%Y%m%d%H"))) * 100
         seeds = [base + i for i in range(a.draws)]
-        print("evaluation seeds %d-%d (from the date and hour: none was run before this hour)" % (seeds[0], seeds[-1]),
+        print("evaluation seeds %d-%d (%s)" % (seeds[0], seeds[-1], "from the date and hour: none was run before this hour"
+                                                 if a.hour is None else "the run of hour %d, finished" % a.hour),
               file=sys.stderr)
     else:
         seeds = [a.seed * 1000 + i for i in range(a.draws)]

@@ -72,8 +72,8 @@ def describe(status):
             value = ", ".join(value) if value else "none"
         elif key == "params_saved" and value is not None:
             value = ", ".join("%s=%d" % kv for kv in sorted(value.items())) or "all defaults"
-        elif key == "force_range_mN" and value is None:
-            value = "not in the calibration (any target within +-200000)"
+        elif key == "force_range_mN" and value is None and status.get("calibration_crc") is not None:
+            value = "not in the calibration (any target within +-200000 mN)"
         if value is None:
             value = "none"
         lines.append("%-30s %s" % (label, value))

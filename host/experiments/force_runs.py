@@ -40,7 +40,8 @@ def blocking_run(session, rig, target_n, start_mm=30.0, seconds=4.0):
 
 
 def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s=0.5):
-    targets = [-float(t) for t in np.arange(0.0, top_n + 1e-9, step_n)]
+    held = board_force_range(session.client)  # a board that held less than top_n refuses the rest
+    targets = [-float(t) for t in np.arange(0.0, top_n + 1e-9, step_n) if not refused(-float(t), held)]
     targets, measured, estimates = hold_sequence(session, rig, prompter, anchor_mm, "high", targets, settle_s, 0.2, "dead zone")
     rows = [{"target": t, "measured": float(m), "estimate": e} for t, m, e in zip(targets, measured, estimates)]
     dz = max([abs(r["target"]) for r in rows if abs(r["measured"]) < 0.5 * abs(r["target"])] or [0.0])
@@ -48,6 +49,18 @@ def dead_zone(session, rig, prompter, anchor_mm, step_n=0.2, top_n=5.0, settle_s
 
 
 IN_RANGE = 0.9  # a step beyond this share of the force the calibration reached on its side is out of its range
+
+
+def board_force_range(client):
+    """(lowest, highest) N of the force targets the board takes (its calibration's force_range),
+    or None when it takes any the protocol allows."""
+    held = client.call("status").get("force_range_mN")
+    return None if not held else (held[0] / 1000.0, held[1] / 1000.0)
+
+
+def refused(target_n, held):
+    """Whether a board whose force range is `held` (board_force_range) refuses `target_n`."""
+    return held is not None and not held[0] <= target_n <= held[1]
 
 
 def beyond_reach(magnitudes, reached_n):
@@ -62,7 +75,12 @@ def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS
     left out (beyond_reach), and a row whose target is beyond IN_RANGE of it says so ("in_range":
     False): the spring and motor were shown to hold it, but it is the last stretch of what F0 was
     measured over."""
-    magnitudes = [m for m in magnitudes if m not in beyond_reach(magnitudes, reached_n)]
+    beyond = beyond_reach(magnitudes, reached_n)
+    kept = [m for m in magnitudes if m not in beyond]
+    # a step left out must not leave a hold repeated as a step (5, 10, 10, 5 when 15 is left out)
+    magnitudes = [m for i, m in enumerate(kept) if i == 0 or m != kept[i - 1]]
+    if not magnitudes:
+        return []
     targets = [SIDES[side] * m for m in magnitudes]
     _, measured, estimates = hold_sequence(session, rig, prompter, anchor_mm, side, targets, settle_s, 0.5,
                                        "%s-side steps" % side, preload=True)
@@ -72,7 +90,7 @@ def force_steps(session, rig, prompter, anchor_mm, side="high", magnitudes=STEPS
         m = float(m)
         rows.append({
             "target": target, "measured": m, "estimate": e, "side": side,
-            "phase": "loading" if magnitude > peak else "unloading",
+            "phase": "loading" if magnitude > peak else "unloading",  # consecutive magnitudes differ (above)
             "steady_pct": 100.0 * (m - target) / abs(target),
             "estimation_pct": 100.0 * (e - m) / abs(m) if m else float("nan"),
             "reached_n": reached_n,

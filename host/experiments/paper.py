@@ -243,11 +243,18 @@ class PaperRun:
         say("  held-out positions (drawn): %s mm" % ", ".join("%g" % t for t in drawn))
         self.held_out.positions = held_out.positions(session, rig, opts.ref_scale, zero, drawn)
         self.held_out.store(results)  # kept should the blocking runs below stop the run
+        held = force_runs.board_force_range(session.client)
+        not_run = []
         for target in (5.0, 1.0, 10.0, -1.0, -5.0, -10.0):
+            if force_runs.refused(target, held):  # beyond what the force step held: the board refuses it
+                say("  %+.0f N at no load is not run: beyond the force range the calibration held (%+.2f .. %+.2f N)"
+                    % (target, held[0], held[1]))
+                not_run.append(("not run", {"final": None, "target_n": target}))
+                continue
             blocking.append(("with Df", force_runs.blocking_run(session, rig, target, middle)))
         displacement.plot(out_dir / "fig7.png", before, after)
         force_runs.plot_blocking(out_dir / "fig8.png", blocking[:2])
-        runs = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking]
+        runs = [(name, {k: v for k, v in run.items() if k in ("final", "target_n")}) for name, run in blocking] + not_run
         return [figures.Fig7(before=before, after=after, reference_zero=zero), figures.Fig8(runs), self.held_out]
 
     def dead_zone(self, results):
@@ -266,7 +273,7 @@ class PaperRun:
         refused = [{"side": side, "target": SIDES[side] * m, "reached_n": reached[side]}
                    for side in sides for m in force_runs.beyond_reach(force_runs.STEPS_N, reached[side])]
         for x in refused:
-            self.say("  %+.0f N on the %s side is not run: beyond the %.1f N the force step held there" % (
+            self.say("  %+.0f N on the %s side is not run: beyond the %.2f N the force step held there" % (
                 x["target"], x["side"], x["reached_n"]))
         return [figures.Table1([row for side in sides
                                 for row in force_runs.force_steps(self.session, self.rig, self.prompter, self.opts.anchor_mm,

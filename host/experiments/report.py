@@ -140,13 +140,14 @@ def _summary_section(add, r):
     held_n = len((r.get("held_out") or {}).get("forces") or [])
     judged_on = "held out" if hss is not None else "the paper's steps"
     add("| force steps -5/-10/-15 N (Table 1), steady-state error | -4.6 / -7.0 / 4.0 %% | %s %%; worst of all %d steps "
-        "(%s; next to where the calibration's trim held) %.1f %%; **held out: worst %s %%** of %d steps at drawn forces | "
+        "(%s; next to where the calibration's trim held) %s %%; **held out: worst %s %%** of %d steps at drawn forces | "
         "<= 2 %% (%s): %s |" % (
-            " / ".join("%+.1f" % x["steady_pct"] for x in paper_rows), len(t1), kinds, worst_ss, _f(hss, 1), held_n,
+            " / ".join("%+.1f" % x["steady_pct"] for x in paper_rows) or "-", len(t1), kinds, _f(worst_ss, 1), _f(hss, 1), held_n,
             judged_on, _met(ok["force steps"])))
-    add("| same, estimation error | -2.5 / -5.6 / 2.8 %% | %s %%; worst of all %d steps %.1f %%; **held out: worst %s %%** | "
+    add("| same, estimation error | -2.5 / -5.6 / 2.8 %% | %s %%; worst of all %d steps %s %%; **held out: worst %s %%** | "
         "<= 2 %% (%s, with the steady-state error) |" % (
-            " / ".join("%+.1f" % x["estimation_pct"] for x in paper_rows), len(t1), worst_est, _f(hest, 1), judged_on))
+            " / ".join("%+.1f" % x["estimation_pct"] for x in paper_rows) or "-", len(t1), _f(worst_est, 1), _f(hest, 1),
+            judged_on))
     add("")
     off = r.get("paper_method_offline")
     if off:
@@ -248,7 +249,8 @@ def _fig8_section(add, r):
     add("| run | target N | D2 at the end mm |")
     add("| --- | --- | --- |")
     for name, b in blocking:
-        add("| %s | %+.0f | %s |" % (name, b["target_n"], _f(b["final"], 2)))
+        add("| %s | %+.0f | %s |" % (name, b["target_n"], _f(b["final"], 2) if name != "not run" else
+                                     "- (beyond the force range the calibration held: the board refuses it)"))
     add("")
     add("Without the Df correction the firmware's deformation includes Df(D1), which reaches the 5 N target deformation "
         "part-way, and the block stops there (paper: 43.1 mm). With it a free block under a positive force target runs "
@@ -302,7 +304,7 @@ def _table1_section(add, r):
     if refused:
         add("**Not run:** %s: beyond the force the force step held on that side, which the board refuses as a "
             "target (the calibration's force range): the spring and motor were not shown to hold it."
-            % "; ".join("%+.0f N (%s side, held %.1f N)" % (x["target"], "60 mm" if x["side"] == "high" else "0 mm",
+            % "; ".join("%+.0f N (%s side, held %.2f N)" % (x["target"], "60 mm" if x["side"] == "high" else "0 mm",
                                                            x["reached_n"]) for x in refused))
         add("")
     add("Steady-state error = (gauge - target) / |target|; estimation error = (firmware estimate - gauge) / |gauge|. "

@@ -24,8 +24,9 @@ def headline(r):
     return {
         "before": displacement.max_error(r["fig7"]["before"]),
         "after": displacement.max_error(r["fig7"]["after"]),
-        "worst_steady_pct": max(abs(x["steady_pct"]) for x in t1),
-        "worst_estimation_pct": max(abs(x["estimation_pct"]) for x in t1),
+        # None when every step was beyond what the force step held (none was run)
+        "worst_steady_pct": max((abs(x["steady_pct"]) for x in t1), default=None),
+        "worst_estimation_pct": max((abs(x["estimation_pct"]) for x in t1), default=None),
         # the paper's Table 1: pulling toward 0 mm, loading
         "paper_rows": [x for x in t1 if x.get("side", "high") == "high" and x.get("phase", "loading") == "loading"],
         "without_df": [b for n, b in r["fig8"] if n == "without Df"],
@@ -69,4 +70,4 @@ def judged(h, r=None):
     return {"Df": None if df is None else df <= TARGETS["df_mm"],
             "displacement": pos <= TARGETS["displacement_mm"],
             "no blocking": h["no_blocking"],
-            "force steps": max(ss, est) <= TARGETS["force_pct"]}
+            "force steps": None if ss is None or est is None else max(ss, est) <= TARGETS["force_pct"]}

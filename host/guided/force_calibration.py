@@ -40,14 +40,15 @@ def held_range(usable):
     hard contact, N}: the board refuses force targets beyond it. A side the gauge was not hooked on
     takes the other's magnitude, and the line says it was not measured (the spring pair and the
     motor are alike both ways, but nobody saw it)."""
-    measured = {SIDES[side]: float(n) for side, n in usable.items() if n and n > 0}
+    # a side that held no more than a taut fibre's force (or nothing) was not measured
+    measured = {SIDES[side]: float(n) for side, n in usable.items() if n and n > 2 * TAUT_N}
     if not measured:
         return None, "force: no side held a force: the board keeps the protocol's +-200 N as its range"
     reach = {sign: measured.get(sign, max(measured.values())) for sign in (-1, 1)}
     assumed = [sign for sign in (-1, 1) if sign not in measured]
     section = force_range_section(-reach[-1], reach[1], {"measured": [sign for sign in (-1, 1) if sign in measured],
                                                           "assumed": assumed})
-    return section, "force: targets %+.1f .. %+.1f N are taken (what the force step held%s); beyond them force mode " \
+    return section, "force: targets %+.2f .. %+.2f N are taken (what the force step held%s); beyond them force mode " \
         "refuses" % (-reach[-1], reach[1], "; the %s side was not measured and takes the other's" % (
             "negative" if assumed == [-1] else "positive") if assumed else "")
 

@@ -168,7 +168,7 @@ def test_a_step_beyond_what_the_force_step_held_is_not_run_and_said_so(tmp_path)
     results["table1"] = [row for row in results["table1"] if row["target"] != 15.0]
     results["table1_refused"] = [{"side": "low", "target": 15.0, "reached_n": 12.0}]
     text = report.write(tmp_path, results, SimpleNamespace()).read_text()
-    assert "**Not run:** +15 N (0 mm side, held 12.0 N): beyond the force the force step held" in text
+    assert "**Not run:** +15 N (0 mm side, held 12.00 N): beyond the force the force step held" in text
 
 
 @pytest.mark.parametrize("failure", [TimeoutError("no reply to stream"), KeyboardInterrupt()], ids=["board-gone", "ctrl-c"])
@@ -252,3 +252,82 @@ def test_a_run_that_stops_in_the_held_out_sweep_keeps_its_seed(monkeypatch, tmp_
     with pytest.raises(TimeoutError):
         run.held_out_df(results)
     assert results["held_out"] == {"seed": 77}
+
+
+class _StatusClient:
+    """A board's client that answers `status` with a force range (mN), as the firmware does."""
+
+    def __init__(self, force_range_mn):
+        self.force_range_mn = force_range_mn
+
+    def call(self, name, *args):
+        assert name == "status", name
+        return {"force_range_mN": self.force_range_mn}
+
+
+def test_steps_left_out_leave_no_hold_repeated_as_a_step(monkeypatch):
+    """On a side that held 12 N, 5/10/15/10/5 N becomes 5/10/5 N (not 5/10/10/5, whose second 10 N
+    hold would read as unloading); on one that held 3 N nothing is run at all."""
+    from types import SimpleNamespace
+
+    from host.experiments import force_runs
+
+    held = []
+
+    def hold_sequence(session, rig, prompter, anchor, side, targets, settle, measure, label, preload=False):
+        held.append(list(targets))
+        return targets, [t * 1.01 for t in targets], list(targets)
+
+    monkeypatch.setattr(force_runs, "hold_sequence", hold_sequence)
+    rig = SimpleNamespace(no_load=lambda: None)
+    rows = force_runs.force_steps(None, rig, None, 45.0, "low", reached_n=12.0)
+    assert held == [[5.0, 10.0, 5.0]]
+    assert [(r["target"], r["phase"]) for r in rows] == [(5.0, "loading"), (10.0, "loading"), (5.0, "unloading")]
+    assert force_runs.force_steps(None, rig, None, 45.0, "high", reached_n=3.0) == [] and len(held) == 1
+
+
+def test_the_dead_zone_stops_at_the_force_range_the_board_takes(monkeypatch):
+    from types import SimpleNamespace
+
+    from host.experiments import force_runs
+
+    asked = []
+
+    def hold_sequence(session, rig, prompter, anchor, side, targets, settle, measure, label, preload=False):
+        asked.extend(targets)
+        return targets, [0.0] * len(targets), [0.0] * len(targets)
+
+    monkeypatch.setattr(force_runs, "hold_sequence", hold_sequence)
+    force_runs.dead_zone(SimpleNamespace(client=_StatusClient([-3000, 3000])), None, None, 45.0)
+    assert min(asked) == -3.0 and len(asked) == 16  # 0 .. -3 N in 0.2 N steps; -3.2 .. -5 N refused
+    asked.clear()
+    force_runs.dead_zone(SimpleNamespace(client=_StatusClient(None)), None, None, 45.0)
+    assert min(asked) == -5.0
+
+
+def test_a_run_with_no_table1_step_reports_it_and_is_not_met(tmp_path):
+    """Every Table 1 step beyond what the force step held (an actuator that held under 5 N): the
+    report is written, the summary says '-', and the force target is not met (nothing measured)."""
+    from types import SimpleNamespace
+
+    from host.experiments import report
+    from host.experiments.targets import headline, judged
+
+    results = _results(0.05, 0.05, 1.0)
+    results["table1"] = []
+    results["table1_refused"] = [{"side": s, "target": sign * m, "reached_n": 4.0}
+                                 for s, sign in (("high", -1.0), ("low", 1.0)) for m in (5.0, 10.0, 15.0)]
+    results.pop("held_out", None)
+    h = headline(results)
+    assert h["worst_steady_pct"] is None and judged(h, results)["force steps"] is None
+    text = report.write(tmp_path, results, SimpleNamespace()).read_text()
+    assert "**Not run:** -5 N (60 mm side, held 4.00 N)" in text
+
+
+def test_a_side_that_held_no_more_than_a_taut_fibre_is_not_a_measured_range():
+    from host.guided.force_calibration import held_range
+
+    section, line = held_range({"high": 17.86, "low": 0.0004})
+    assert section["fixed"] == [-17860, 17860] and section["fit"]["assumed"] == [1], section
+    assert "the positive side was not measured" in line
+    assert held_range({"high": 0.2})[0] is None
