@@ -44,7 +44,11 @@ PRELOAD_N = 0.5  # takes up the fibre's slack before the first target
 TRIM_FRACTIONS = (0.3, 0.6, 0.9, 0.6, 0.3)  # of a side's identified force range: loading, then unloading; spread over it for F0
 TRIM_SETTLE_S, TRIM_MEASURE_S = 1.5, 0.5  # as the paper's force steps hold each target
 CHECK_FRACTIONS = (0.45, 0.75, 0.45, 0.2)  # the correction's check: loading, then unloading, off the trim's targets
-TRIM_LIMIT = (0.5, 0.2)  # a trim that moves h by more than this fraction of it and more than this many N is not trusted
+# A trim that scales h by more than this factor either way and moves it by more than this many N
+# is not trusted. The loop meets less friction than the open-loop levels measure (the block follows
+# the spring's jitter peaks), by up to 0.39 N of 0.66 on a soft 9 N/mm spring against a 10 N/mm
+# gauge (seed 202611271100, whose 5 N steps missed by 10-15 % under the old limit, half of h).
+TRIM_LIMIT = (3.0, 0.2)
 
 
 def _hold(client, gauge, target_n, settle_s, measure_s):
@@ -139,10 +143,12 @@ def trimmed_friction(friction_n, sides):
                     F0Correction(why="h was not trimmed"))
     mu, md = (sum(p[i] for p in pairs) / len(pairs) for i in (0, 1))
     trimmed = friction_n + (mu - md) / 2000.0
-    if abs(trimmed - friction_n) > max(TRIM_LIMIT[0] * friction_n, TRIM_LIMIT[1]):
-        return Trim(friction_n, mu, md, n, "the trim would move h by %+.0f mN, more than %d %% of it and %.0f mN" % (
-            trimmed * 1000 - friction_n * 1000, 100 * TRIM_LIMIT[0], 1000 * TRIM_LIMIT[1]),
-            F0Correction(why="h was not trimmed"))
+    factor, moved = TRIM_LIMIT
+    if abs(trimmed - friction_n) > moved and not friction_n / factor <= trimmed <= friction_n * factor:
+        return Trim(friction_n, mu, md, n, "the trim would move h by %+.0f mN to %.0f mN, beyond %g times or 1/%g of "
+                    "it and more than %.0f mN" % (trimmed * 1000 - friction_n * 1000, trimmed * 1000, factor, factor,
+                                                  1000 * moved),
+                    F0Correction(why="h was not trimmed"))
     trimmed = max(0.0, trimmed)
     f0 = f0_correction({sign: common_errors(rows, trimmed - friction_n) for sign, rows in taut.items()})
     return Trim(trimmed, mu, md, n, f0=f0)
