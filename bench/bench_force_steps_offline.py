@@ -47,6 +47,10 @@ Diagnostics (each changes what is run, and says so in the tally line):
     --filter-shift N     the estimate's average over 2**N steps instead of measurement.filter_shift's
     --loop-hz HZ         every board's loop rate (CircuitPython's 250 Hz); settle and hold keep
                          their seconds
+    --spring true|observer   the play operator fed the simulator's true spring force, or an
+                         observer's driven by the motor voltage with the board's true constants
+                         (bench/spring_diagnostics.py; --drive-scale K makes its motor constant
+                         wrong by K); use with --filter-shift 0
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
 `bench/bench_robustness.py --draws 8 --out out/robF` writes).
 
@@ -68,6 +72,7 @@ gap ~ estimate - load.
 """
 
 import argparse
+import contextlib
 import json
 import os
 import sys
@@ -75,6 +80,7 @@ import tempfile
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+import spring_diagnostics  # noqa: E402
 from offline_force_rig import (PRELOAD, ROOT, RUN, SIDES, TARGETS, calibration, gauge_anchor_um,  # noqa: E402
                                override_params)
 
@@ -231,6 +237,12 @@ def main():
                          "identified one (before the trim)")
     ap.add_argument("--filter-shift", type=int, metavar="N",
                     help="diagnostic: the estimate's average over 2**N steps (measurement.filter_shift; 6 at 1 kHz)")
+    ap.add_argument("--spring", choices=("true", "observer"),
+                    help="diagnostic: the estimate's play operator fed the simulator's true spring force, or a "
+                         "model-based observer's with the board's true motor constants (bench/spring_diagnostics.py); "
+                         "pair with --filter-shift 0")
+    ap.add_argument("--drive-scale", type=float, default=1.0, metavar="K",
+                    help="with --spring observer: the observer's motor force per volt times K (its cost when wrong)")
     ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
     ap.add_argument("--true-load", action="store_true",
                     help="diagnostic: score (and trim, refit) against the simulator's true load instead of the gauge's "
@@ -259,10 +271,13 @@ def main():
         import firmware.measurement as measurement
 
         measurement.filter_shift = lambda loop_hz: a.filter_shift
+    if a.spring and a.loop_hz and a.loop_hz != 1000:
+        sys.exit("--spring observer models one step as 1 ms: use it at the 1 kHz loop (no --loop-hz)")
     if not os.path.isdir(a.runs):
         sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
     os.chdir(ROOT)
-    with tempfile.TemporaryDirectory() as tmp:
+    with tempfile.TemporaryDirectory() as tmp, \
+            (spring_diagnostics.feeding(a.spring, a.drive_scale) if a.spring else contextlib.nullcontext()):
         if a.trace:
             if a.trace[1] not in ("high", "low"):
                 sys.exit("SIDE is high or low")
@@ -292,6 +307,10 @@ def main():
                     (["noise=%g LSB" % a.noise] if a.noise is not None else []) + \
                     (["friction h %s" % a.friction] if a.friction else []) + \
                     (["estimate over 2**%d steps" % a.filter_shift] if a.filter_shift is not None else []) + \
+                    (["play operator fed the %s spring force%s" % (
+                        "TRUE" if a.spring == "true" else "observer's",
+                        " (drive x%g)" % a.drive_scale if a.spring == "observer" and a.drive_scale != 1.0 else "")]
+                     if a.spring else []) + \
                     (["scored against the TRUE load"] if a.true_load else ["scored against the gauge's readings"])
                 print("tally (%s calibration%s%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
                       "max %.2f %%" % ("exact" if a.exact else "re-identified" if a.refit else "identified",
