@@ -141,12 +141,15 @@ def main(argv=None):
     ap.add_argument("--no-base", action="store_true", help="skip the boards/sim.json row")
     ap.add_argument("--out", default="out/robustness", help="where the boards and runs go")
     ap.add_argument("--doc", help="write the table and ranges to this Markdown file")
+    ap.add_argument("--boards-only", action="store_true",
+                    help="write the drawn board files (board-SEED.json in --out) and run nothing: actuators for the "
+                         "offline benches (bench_force_steps_offline.py --runs OUT --exact --oversample 16)")
     ap.add_argument("--reuse", action="store_true",
                     help="keep the rows whose run already finished in --out (results.json there): an interrupted bench "
                          "goes on where it stopped")
     a = ap.parse_args(argv)
-    if a.hour is not None and not (a.fresh and a.reuse):
-        ap.error("--hour finishes an evaluation run: it needs --fresh and --reuse")
+    if a.hour is not None and not (a.fresh and (a.reuse or a.boards_only)):
+        ap.error("--hour finishes an evaluation run: it needs --fresh and --reuse (or --boards-only)")
     board = json.loads((REPO / "boards" / "sim.json").read_text())
     out = Path(a.out)
     out.mkdir(parents=True, exist_ok=True)
@@ -174,6 +177,11 @@ def main(argv=None):
             b.pop("sources", None)
             path = out / ("board-%d.json" % seed)
             name = "seed %d" % seed
+        if a.boards_only:
+            if seed is not None:
+                path.write_text(json.dumps(b, indent=1))
+                print("%s: %s" % (name, path), file=sys.stderr, flush=True)
+            continue
         run_dir = out / ("run-%s" % (seed if seed is not None else "base"))
         done = run_dir / "results.json"
         results = json.loads(done.read_text()) if a.reuse and done.exists() else {}
@@ -197,6 +205,8 @@ def main(argv=None):
         row["actuator"]["oversample"] = kept.get("oversample")
         rows.append(row)
         print("%s: %s %s (%s s, exit %s)" % (name, verdict, row["figures"], "-" if wall is None else "%.0f" % wall, code), flush=True)
+    if a.boards_only:
+        return 0
     (out / "summary.json").write_text(json.dumps(rows, indent=1))
     targets = ("Df", "displacement", "no blocking", "force steps")
     lines = ["| actuator | " + " | ".join(targets) + " | figures | wall s |", "| --- |" + " --- |" * (len(targets) + 2)]

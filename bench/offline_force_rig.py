@@ -92,14 +92,21 @@ def exact_calibration(board_path, out_path):
     return out_path
 
 
+_TOLD_NO_ROW = set()
+
+
 def as_run(runs, seed, board, tmp):
     """The board file as the run used it: bringup's --fix may have raised `oversample` (row.json
     records the value), and 4 reads a step instead of 16 double the deformation's noise. Then
     the diagnostics' changes, if any."""
     row = os.path.join(runs, "run-base" if seed == "sim" else "run-%s" % seed, "row.json")
     oversample = json.load(open(row)).get("oversample") if os.path.exists(row) else None
-    oversample = RUN.oversample or oversample
     data = json.load(open(board))
+    if oversample is None and RUN.oversample is None and seed not in _TOLD_NO_ROW:
+        _TOLD_NO_ROW.add(seed)  # a board drawn again from its seed has no run: easy to miss
+        print("%s: no %s, so the board file's %d reads a step (a run's bringup may have set more: "
+              "--oversample N to match it)" % (seed, row, data.get("oversample", 4)), file=sys.stderr, flush=True)
+    oversample = RUN.oversample or oversample
     if RUN.oversample_times:
         oversample = min(64, (oversample or data.get("oversample", 4)) * RUN.oversample_times)
     if (not oversample or data.get("oversample") == oversample) and RUN.noise is None and not RUN.loop_hz:
