@@ -50,7 +50,7 @@ Diagnostics (each changes what is run, and says so in the tally line):
     --spring true|observer   the play operator fed the simulator's true spring force, or an
                          observer's driven by the motor voltage with the board's true constants
                          (bench/spring_diagnostics.py; --drive-scale K makes its motor constant
-                         wrong by K); use with --filter-shift 0
+                         wrong by K, --bias-hz HZ adds a bias state); use with --filter-shift 0
 SEEDs default to 1000 1001 1005 1006 1007 sim; DIR defaults to out/robF (what
 `bench/bench_robustness.py --draws 8 --out out/robF` writes).
 
@@ -243,6 +243,9 @@ def main():
                          "pair with --filter-shift 0")
     ap.add_argument("--drive-scale", type=float, default=1.0, metavar="K",
                     help="with --spring observer: the observer's motor force per volt times K (its cost when wrong)")
+    ap.add_argument("--bias-hz", type=float, default=0.0, metavar="HZ",
+                    help="with --spring observer: also estimate a bias force (what the model's drive misses), its "
+                         "pole at about HZ (0: none)")
     ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
     ap.add_argument("--true-load", action="store_true",
                     help="diagnostic: score (and trim, refit) against the simulator's true load instead of the gauge's "
@@ -277,7 +280,7 @@ def main():
         sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
     os.chdir(ROOT)
     with tempfile.TemporaryDirectory() as tmp, \
-            (spring_diagnostics.feeding(a.spring, a.drive_scale) if a.spring else contextlib.nullcontext()):
+            (spring_diagnostics.feeding(a.spring, a.drive_scale, a.bias_hz) if a.spring else contextlib.nullcontext()):
         if a.trace:
             if a.trace[1] not in ("high", "low"):
                 sys.exit("SIDE is high or low")
@@ -309,7 +312,9 @@ def main():
                     (["estimate over 2**%d steps" % a.filter_shift] if a.filter_shift is not None else []) + \
                     (["play operator fed the %s spring force%s" % (
                         "TRUE" if a.spring == "true" else "observer's",
-                        " (drive x%g)" % a.drive_scale if a.spring == "observer" and a.drive_scale != 1.0 else "")]
+                        ("" if a.spring != "observer" else
+                         (" (drive x%g)" % a.drive_scale if a.drive_scale != 1.0 else "") +
+                         (" (bias pole %g Hz)" % a.bias_hz if a.bias_hz else "")))]
                      if a.spring else []) + \
                     (["scored against the TRUE load"] if a.true_load else ["scored against the gauge's readings"])
                 print("tally (%s calibration%s%s): %d of %d cases within 2 %% at every step; mean worst %.2f %%, "
