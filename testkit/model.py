@@ -61,7 +61,7 @@ def model_sections(board=None, n_points=None, feed_forward=False):
     for x in xs:
         world.place(x)
         for i, name in enumerate(("pot1", "pot2")):
-            codes[name].append(world.true_code(name))
+            codes[name].append(world.code_value(name))  # unrounded: a rounded code is up to half a code off its position
             travel[name].append(x + world.pots[i].mount_error_mm(x))
     out = {}
     for name in ("pot1", "pot2"):

@@ -327,6 +327,12 @@ class Actuator:
         """The noise-free code a channel would read now (for tests and calibration checks)."""
         return self._base_q8[CHANNELS.index(name)] >> 8
 
+    def code_value(self, name):
+        """The channel's noise-free input in codes, unrounded (1/256 code): what its reads average
+        to, and what a table of code against position must pair with the position. The rounded
+        true_code is up to half a code (10-20 um of a pot) off it."""
+        return (self._base_q8[CHANNELS.index(name)] - 128) / 256.0
+
 
 def _q8(fraction, full_q8):
     """Fraction of full scale -> code in Q8 with +0.5 LSB so that >> 8 rounds. An input beyond
