@@ -24,10 +24,13 @@ for that force) and the friction section equal to the board's true coulomb_n; wi
 that friction is then trimmed in closed loop as the guided calibration trims its own (what is left
 is the loop's share, without the calibration's). The pot tables span the board's own stroke (a
 drawn board's is 40-80 mm; until stop 41 they spanned 0-60 mm, and --exact on drawn boards read
-nonsense).
+nonsense), and each knot pairs a position with its unrounded code (until stop 43 the rounded one,
+up to half a code off: the 'exact' deformation was 10-20 um wrong in places, 0.1-0.25 N, and the
+exact figures of stops 41 and 42 carry that). --exact --refit keeps the exact pots and Df and
+identifies the force sections again as --refit does: the force identification's share alone.
 
 Call (from the repository root, the venv's python):
-    python bench/bench_force_steps_offline.py [--runs DIR] [--exact | --refit] [--trim] [--anchors UM,UM] [SEED ...]
+    python bench/bench_force_steps_offline.py [--runs DIR] [--exact] [--refit] [--trim] [--anchors UM,UM] [SEED ...]
     python bench/bench_force_steps_offline.py [--runs DIR] [--exact] --trace SEED SIDE
     python bench/bench_force_steps_offline.py [--runs DIR] --ident [--anchors UM,UM] [SEED ...]
 --anchor UM moves the gauge anchor (default 45000 um of D2, where the guided force step and the
@@ -213,7 +216,8 @@ def main():
     ap.add_argument("--exact", action="store_true", help="exact model calibration instead of the identified one")
     ap.add_argument("--trace", nargs=2, metavar=("SEED", "SIDE"), help="per-step extremes for one seed and side")
     ap.add_argument("--refit", action="store_true",
-                    help="identify the force sections again by replaying the guided force step (the run's pots and Df kept)")
+                    help="identify the force sections again by replaying the guided force step (the run's pots and Df kept; "
+                         "with --exact, the exact ones)")
     ap.add_argument("--trim", action="store_true",
                     help="trim the calibration's friction in closed loop first, as the guided step does after the force step")
     ap.add_argument("--no-f0", action="store_true", help="with --trim: trim h only, leave F0 as identified")

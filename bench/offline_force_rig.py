@@ -219,6 +219,9 @@ def calibration(runs, seed, exact, tmp):
     board = as_run(runs, seed, board, tmp)
     if exact:
         cal = exact_calibration(board, os.path.join(tmp, "exact-%s.json" % seed))
+        if RUN.refit:  # exact pots and Df, the force sections identified by the guided step's replay
+            out = os.path.join(tmp, "exact-refit-%s.json" % seed)
+            cal = out if os.path.exists(out) else refit_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
         if RUN.trim:  # the exact F0 with h trimmed in closed loop, as the guided calibration trims its own
             out = os.path.join(tmp, "exact-trim-%s.json" % seed)
             cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
