@@ -168,7 +168,7 @@ def trace(runs, seed, side, exact, tmp):
     _run(app, 500)
     print("seed %s side %s (%s calibration), block friction h = %.0f mN; mN, in load units"
           % (seed, side, "exact" if exact else "refit" if RUN.refit else "run", h))
-    print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd")
+    print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd  load-target")
     prev = PRELOAD
     for t in TARGETS:
         app.set_target(sign * t)
@@ -192,7 +192,8 @@ def trace(runs, seed, side, exact, tmp):
                 held.append(sp)
         mean = sum(held) / RUN.hold
         sd = (sum((v - mean) ** 2 for v in held) / RUN.hold) ** 0.5
-        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f  %9.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / RUN.hold, sd))
+        print("%6d  %10.0f  %10.0f  %5.0f  %8.0f  %9.0f  %11.0f" % (t, sp_ext, f0_ext, sp_ext - f0_ext, (est - load) / RUN.hold, sd,
+                                                            load / RUN.hold - t))
         prev = t
     app.shutdown()
 
