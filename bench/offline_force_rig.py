@@ -86,7 +86,7 @@ def exact_calibration(board_path, out_path):
     h = float(board["actuator"]["block"]["coulomb_n"])  # in the host's form, which --trim reads and rewrites
     # pot tables with a knot every 1/8 mm: within a micrometre of the pots between knots (a knot a
     # millimetre strays up to 30 um near the knees, 0.4 N of a 13 N/mm spring)
-    pots = model.model_sections(board, n_points=int(round((hi - lo) * 8)) + 1)
+    pots = model.model_sections(board, n_points=int(round((hi - lo) * 8)) + 1, unrounded=True)
     model.write_model_calibration(out_path, board=board, pot1=pots["pot1"], pot2=pots["pot2"], df=pots["df"],
                                   force=sec_f, force_inverse=sec_i, friction=friction_section(h))
     return out_path

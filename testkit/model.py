@@ -45,10 +45,16 @@ def stroke_of(board):
 SPRING_ORDER = 7  # the model calibration's F0(d) and d(F0) polynomials
 
 
-def model_sections(board=None, n_points=None, feed_forward=False):
+def model_sections(board=None, n_points=None, feed_forward=False, unrounded=False):
     """The sections pot1, pot2 (pwl tables), df, force, force_inverse and friction, each
     {"kind", "fixed"} as the firmware reads them; with `feed_forward` the friction section also
-    holds the duty at which the stalled motor holds the spring at the friction force."""
+    holds the duty at which the stalled motor holds the spring at the friction force.
+
+    Each pot-table knot pairs a position with its rounded noise-free code, up to half a code
+    (7-10 um) off, as the firmware tests' calibration has always had it (their bounds were set
+    with it). `unrounded` pairs it with the unrounded code instead: exact at the knots, which the
+    offline benches' --exact needs (with a knot every 1/8 mm the rounded pairing made the
+    deformation 10-20 um wrong in places, 0.1-0.25 N; docs/robustness.md, stop 43)."""
     from host.calibration.fixed_export import export_poly, export_pwl
 
     board = board or sim_board()
@@ -61,7 +67,7 @@ def model_sections(board=None, n_points=None, feed_forward=False):
     for x in xs:
         world.place(x)
         for i, name in enumerate(("pot1", "pot2")):
-            codes[name].append(world.code_value(name))  # unrounded: a rounded code is up to half a code off its position
+            codes[name].append(world.code_value(name) if unrounded else world.true_code(name))
             travel[name].append(x + world.pots[i].mount_error_mm(x))
     out = {}
     for name in ("pot1", "pot2"):

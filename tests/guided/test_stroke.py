@@ -94,9 +94,4 @@ def test_the_model_calibration_spans_the_boards_own_stroke(length, low):
         world.place(x)
         for i, name in enumerate(("pot1", "pot2")):
             travel_um = 1000.0 * (x + world.pots[i].mount_error_mm(x))
-            # the table between the two whole codes about the wiper's unrounded one (the rounded
-            # code is up to half a code, 10-30 um near a knee, from where the wiper is)
-            v = world.code_value(name)
-            c0 = int(v)
-            t0, t1 = (pwl(c, sections[name]["fixed"]) for c in (c0, c0 + 1))
-            assert abs(t0 + (v - c0) * (t1 - t0) - travel_um) < 40.0, (name, x)
+            assert abs(pwl(world.true_code(name), sections[name]["fixed"]) - travel_um) < 40.0, (name, x)

@@ -248,10 +248,9 @@ def _trim_holds(path, magnitudes, sides):
     return out
 
 
-def _worst_step_error(path, side, sign, anchor=45000):
+def _worst_step_error(path, side, sign):
     """The paper's force steps (5, 10, 15, 10, 5 N) on `side`: the largest |load - target| / target."""
-    rows = on_cpython("case_force_steps_sim(%r, %r, %r, anchor=%d)"
-                      % (str(path), side, [sign * t for t in (5000, 10000, 15000, 10000, 5000)], anchor))
+    rows = on_cpython("case_force_steps_sim(%r, %r, %r)" % (str(path), side, [sign * t for t in (5000, 10000, 15000, 10000, 5000)]))
     return max(abs(load - target) / abs(target) for target, _, load in rows)
 
 
@@ -261,11 +260,7 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     0.30 N. The loop then holds the load about 3 % short of the targets (checked on one side). The
     trim brings h back (the friction change and F0's error separated), its holds measure F0's error
     (1-6 % of each target), it writes the corrected F0 table and its inverse, and the same force
-    steps, on both sides with the gauge hooked at 44, 45 and 46 mm, then meet the 2 % target at two
-    anchors of three (1.1 and 1.6 %), the worst step of the third within 3.5 %. (Until stop 43 this
-    was one anchor, 45 mm, within 1.5 %: the model's pot tables were half a code off, and with them
-    right that anchor's first high-side step reads 3.3 %: where one first step of a side ends is
-    partly the loop's chance, docs/robustness.md.)"""
+    steps then meet 1.5 % on both sides (1.1 % when written)."""
     from host.calibration.file import force_table_section, read_calibration, write_calibration
     from host.guided.friction_trim import SIDES, trim_magnitudes, trimmed_friction, trimmed_sections
 
@@ -289,9 +284,8 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     assert set(sections) == {"friction", "force", "force_inverse"}, lines
     doc.update(sections)
     write_calibration(path, doc)
-    after = sorted(max(_worst_step_error(path, side, sign, anchor) for side, sign in SIDES.items())
-                   for anchor in (44000, 45000, 46000))
-    assert after[1] < 0.02 and after[2] < 0.035, (before, after, lines)
+    after = {side: _worst_step_error(path, side, sign) for side, sign in SIDES.items()}
+    assert max(after.values()) < 0.015, (before, after, lines)
 
 
 def test_bench_gauge_reads_the_load_a_bench_would(cal_path, tmp_path):

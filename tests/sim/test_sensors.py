@@ -256,8 +256,8 @@ def test_a_real_measured_adc_curve_as_the_pot_is_calibrated_to_its_noise_floor(r
 
 
 def test_the_model_pot_tables_pair_each_knot_with_its_unrounded_code():
-    """testkit.model's exact pot tables (the offline benches' --exact) put a knot every 1/8 mm.
-    Paired with the rounded noise-free code, each knot was up to half a code (7-10 um) off, and on
+    """testkit.model's exact pot tables (`unrounded`, the offline benches' --exact) put a knot every
+    1/8 mm. Paired with the rounded noise-free code, each knot was up to half a code (7-10 um) off, and on
     a 13 N/mm spring the deformation of two pots that far off is 0.1-0.25 N of force: what stops 41
     and 42 took for the loop's share was partly this table's. Whole codes between the knots must
     read their position within 2 um mid-stroke."""
@@ -268,7 +268,7 @@ def test_the_model_pot_tables_pair_each_knot_with_its_unrounded_code():
     from testkit import model
 
     board = model.sim_board()
-    sections = model.model_sections(board, n_points=60 * 8 + 1)
+    sections = model.model_sections(board, n_points=60 * 8 + 1, unrounded=True)
     world = Actuator(dict(board["actuator"], adc_bits=board["adc_bits"]), 1)
     worst = 0.0
     for x in np.linspace(15.0, 45.0, 301):
