@@ -330,7 +330,7 @@ class Actuator:
     def code_value(self, name):
         """The channel's noise-free input in codes, unrounded (1/256 code): what its reads average
         to, and what a table of code against position must pair with the position. The rounded
-        true_code is up to half a code (10-20 um of a pot) off it."""
+        true_code is up to half a code (7-10 um of a pot) off it."""
         return (self._base_q8[CHANNELS.index(name)] - 128) / 256.0
 
 
