@@ -31,6 +31,10 @@ class Check:
 @dataclass
 class Limits:
     min_range_mm: float = 54.0  # 90 % of the stroke (here the 0-60 mm one's)
+    # the block's end stops at least this far apart as the reference on a pot reads them (80 % of
+    # the 0-60 mm stroke): a pot's mount stretches or shrinks its scale by some per cent, a block
+    # that jams part-way shows far less
+    min_stops_mm: float = 48.0
     # a pot with 5 LSB of noise read 4x (oversample) shows ~0.05 mm rms over a 60 mm stroke, more
     # where its curve is flat; broken wiring or a noisy supply shows several times that
     max_noise_mm: float = 0.1
@@ -45,6 +49,14 @@ def check_range(y, limits):
     return Check("range", span >= limits.min_range_mm, span, limits.min_range_mm, "mm",
                  "the sweep did not cover the stroke: check that the block runs end to end freely, that the "
                  "reference sensor follows it, and that the reference scale (--ref-zero-mm/--ref-span-mm) is right")
+
+
+def check_stops(span_mm, limits):
+    """The distance between the block's two end stops as the reference on one pot read them."""
+    return Check("stops", span_mm >= limits.min_stops_mm, span_mm, limits.min_stops_mm, "mm",
+                 "the block's end stops are closer than the stroke allows: check that nothing jams the block "
+                 "part-way, that the board file's stroke_mm is this actuator's, and that the reference scale "
+                 "(--ref-zero-mm/--ref-span-mm) is right")
 
 
 def check_monotone(x, y, limits, noise):

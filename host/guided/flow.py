@@ -72,14 +72,17 @@ class Options:
 
 def follow_the_actuator(opts, session):
     """Fill in what follows the actuator's stroke (host/guided/stroke.py) unless given: the stroke
-    itself, the range a pot's sweep must cover (90 % of it), the gauge's anchor (75 % along it)."""
+    itself, the range a pot's sweep must cover (90 % of it; pot_calibration.calibrate_pots narrows it to 90 % of the
+    end stops' distance as each pot's reference read them, at least 80 % of the stroke), the gauge's
+    anchor (75 % along it)."""
     import dataclasses
 
     from host.guided import stroke
 
     if opts.stroke is None:
         opts.stroke = stroke.nominal(session.board, getattr(session, "actuator", None))
-        opts.limits = dataclasses.replace(opts.limits, min_range_mm=stroke.min_sweep_mm(opts.stroke))
+        opts.limits = dataclasses.replace(opts.limits, min_range_mm=stroke.min_sweep_mm(opts.stroke),
+                                          min_stops_mm=stroke.min_stops_mm(opts.stroke))
     if opts.anchor_mm is None:
         opts.anchor_mm = stroke.gauge_anchor_mm(opts.stroke)
     return opts

@@ -52,6 +52,22 @@ def end_stops(stops, adc_bits, ref_scale):
     return out if out["high"][0] - out["low"][0] > 1.0 else None
 
 
+def sweep_limits(limits, ends):
+    """The limits one pot's sweep is checked against, and the check on its end stops (a list of
+    none or one). With the stops measured (`ends`, end_stops of that pot's sweep), the sweep must
+    cover SWEEP_FRACTION of their distance as the reference on that pot read it, not of the
+    nominal stroke: a pot's mount error stretches or shrinks its scale (one drawn actuator's 40.5
+    mm stroke read 36.0 mm on pot 2 and 43.2 on pot 1), and that distance must itself reach
+    limits.min_stops_mm (a block that jams part-way)."""
+    import dataclasses
+
+    if ends is None:
+        return limits, []
+    span = ends["high"][0] - ends["low"][0]
+    narrowed = dataclasses.replace(limits, min_range_mm=min(limits.min_range_mm, stroke.SWEEP_FRACTION * span))
+    return narrowed, [checks.check_stops(span, limits)]
+
+
 def stroke_from(ends, offset_mm, pot2_section):
     """The stroke section: where the block's end stops are in D2, by the firmware's own converter
     of the new pot 2 curve at the codes read there (what the board will compute at the stops)."""
@@ -129,9 +145,11 @@ def calibrate_pots(session, rig, prompter, opts):
                      "stroke limits are the stroke_min_um/stroke_max_um parameters alone"
                      % ("manual reference" if opts.reference == "manual" else "pot 2's sweep did not stall at both ends"))
     for pot in ("pot1", "pot2"):
-        raw, ref, direction, _ = swept[pot]
+        raw, ref, direction, stops = swept[pot]
         ref = ref - offset
-        found, noise, hyst = checks.check_sweep(raw, ref, direction, bits, opts.limits)
+        limits, stops_check = sweep_limits(opts.limits, end_stops(stops, bits, opts.ref_scale))
+        found, noise, hyst = checks.check_sweep(raw, ref, direction, bits, limits)
+        found += stops_check
         status = session.client.call("status")
         if status.get("faults"):  # e.g. a wiper that lifted: the firmware stopped the motor
             found.append(checks.Check("faults", False, float(len(status["faults"])), 0, "firmware faults",

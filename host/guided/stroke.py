@@ -20,6 +20,10 @@ from firmware.board_config import STROKE_LIMIT_MM
 DEFAULT_MM = (0.0, 60.0)
 LIMIT_MM = STROKE_LIMIT_MM  # |position| the firmware represents (protocol.POSITION_LIMIT_UM)
 SWEEP_FRACTION = 0.9  # a pot's sweep must cover this much of the stroke (checks.Limits.min_range_mm)
+# the end stops as the reference on a pot reads them, at least this much of the stroke apart
+# (checks.Limits.min_stops_mm): a pot's mount error stretches or shrinks its scale, on the drawn
+# actuators by up to 2 x 3 mm over 40 mm (testkit/drawn_actuators.py mount_peak_mm)
+STOPS_FRACTION = 0.8
 ANCHOR_FRACTION = 0.75  # the force gauge's default anchor, along the stroke (45 mm of 60)
 ENDS_MM = 1.0  # the displacement targets' first and last, this far inside the stroke
 TARGET_STEP_MM = 5.0  # and every 5 mm between (the paper's Fig. 7 targets on 0-60 mm)
@@ -53,6 +57,10 @@ def middle(stroke):
 
 def min_sweep_mm(stroke):
     return SWEEP_FRACTION * length(stroke)
+
+
+def min_stops_mm(stroke):
+    return STOPS_FRACTION * length(stroke)
 
 
 def gauge_anchor_mm(stroke):

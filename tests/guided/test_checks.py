@@ -87,3 +87,21 @@ def test_limits_are_adjustable():
     raw, ref, d = knee_sweep(10.0, 50.0)
     assert "range" in failed(check_sweep(raw, ref, d, BITS)[0])
     assert "range" not in failed(check_sweep(raw, ref, d, BITS, Limits(min_range_mm=35.0))[0])
+
+
+def test_a_pot_whose_mount_shrinks_its_scale_is_checked_against_its_own_end_stops():
+    # One drawn actuator (seed 202611271902): a 40.5 mm stroke read 36.0 mm between the block's
+    # end stops with the reference on pot 2 (its mount error shrinks the scale), 43.2 on pot 1.
+    from host.guided.pot_calibration import sweep_limits
+
+    nominal = Limits(min_range_mm=0.9 * 40.5, min_stops_mm=0.8 * 40.5)
+    raw, ref, d = knee_sweep(0.0, 36.0)
+    assert "range" in failed(check_sweep(raw, ref, d, BITS, nominal)[0])
+    shrunk, stops = sweep_limits(nominal, {"low": (1.6, 1700), "high": (37.6, 3900)})
+    assert shrunk.min_range_mm == pytest.approx(0.9 * 36.0)
+    assert failed(check_sweep(raw, ref, d, BITS, shrunk)[0] + stops) == set()
+    stretched, stops = sweep_limits(nominal, {"low": (-1.0, 1700), "high": (42.2, 3900)})
+    assert stretched.min_range_mm == nominal.min_range_mm and failed(stops) == set()  # never looser than nominal there
+    jammed, stops = sweep_limits(nominal, {"low": (1.6, 1700), "high": (21.6, 2600)})
+    assert failed(stops) == {"stops"} and "jams" in stops[0].advice
+    assert sweep_limits(nominal, None) == (nominal, [])  # stops not measured (a manual reference): the nominal range
