@@ -79,6 +79,7 @@ _M_FF_DUTY = const(15)  # measurement.FF_DUTY
 _PARK_STEPS = const(50)  # position mode: steps inside the deadband before the block counts as parked
 _DEFL_LEAD = const(60)  # force mode: um the deformation setpoint may lead the measured deformation
 _HOLD_SHIFT = const(1)  # force mode: the PI gains halved while the spring holds its goal (within _DEFL_LEAD)
+_APPROACH_UM = const(128)  # force mode: the deformation setpoint's last um before its goal go at half its rate
 
 # Controller.st
 MODE = const(0)
@@ -312,12 +313,17 @@ class Controller:
                 rate = p[P_DEFL_RATE]
                 if rate <= 0:
                     sp = goal
-                elif goal > sp + rate:
-                    if sp < defl + _DEFL_LEAD:
-                        sp = sp + rate
-                elif goal < sp - rate:
-                    if sp > defl - _DEFL_LEAD:
-                        sp = sp - rate
+                elif goal > sp + rate or goal < sp - rate:
+                    # [force-approach] the last _APPROACH_UM to the goal at half the rate (>= 1 um)
+                    gap = goal - sp
+                    stp = rate
+                    if gap < _APPROACH_UM and gap > -_APPROACH_UM:
+                        stp = (rate + 1) >> 1
+                    if gap > 0:
+                        if sp < defl + _DEFL_LEAD:
+                            sp = sp + stp
+                    elif sp > defl - _DEFL_LEAD:
+                        sp = sp - stp
                 else:
                     sp = goal
                 c[DEFL_SP] = sp

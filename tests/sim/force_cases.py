@@ -250,3 +250,36 @@ def case_force_contact_sim(path, side, target, gap_um, board_path="boards/sim.js
         k += 1
     app.shutdown()
     return {"lead_um": lead, "spring_peak_mN": int(peak)}
+
+
+def case_force_approach_sim(path, side, target, ticks=1500):
+    """A force step from a 0.5 N preload: how the deformation setpoint closes on its goal (the
+    band edge it ramps to). Returns the steps it moved with its goal 3-127 um ahead, and the
+    largest move it made in one of them (um)."""
+    import boards.sim.machine as sim
+
+    app, world, sign = _hooked_on_side(path, side, 45000, 200)
+    app.set_mode("force")
+    app.set_target(sign * 500)
+    _run(app, 500)
+    app.set_target(sign * target)
+    c = app.ctrl
+    near = 0
+    largest = 0
+    prev = c.defl_sp
+    k = 0
+    while k < ticks:
+        sim.run_ticks(1)
+        app.heartbeat()
+        sp = c.defl_sp
+        goal = c.force_set[c.fdir + 1]
+        ahead = (goal - prev) if goal > prev else (prev - goal)
+        moved = (sp - prev) if sp > prev else (prev - sp)
+        if 2 < ahead < 128 and moved:
+            near += 1
+            if moved > largest:
+                largest = moved
+        prev = sp
+        k += 1
+    app.shutdown()
+    return {"near_steps": near, "largest_near_um": largest}

@@ -221,6 +221,19 @@ def test_force_mode_meets_a_slack_load_without_slamming_the_spring(cal_path):
         assert here["spring_peak_mN"] <= 5000 + 300 + 500, (side, here)
 
 
+def test_the_force_setpoint_takes_the_last_of_its_ramp_at_half_the_rate(cal_path):
+    """[force-approach] (firmware/controller.py): the deformation setpoint ramps at defl_rate_um
+    (2 um a step) and takes its last 128 um to the goal (the band edge) at half that, so that the
+    spring does not reach the edge at full speed and overshoot it: the block follows the spring's
+    peaks, which the estimate's 64-step average does not see. At full speed those um take 63
+    steps; at half, 125, none of more than 1 um."""
+    for side in ("high", "low"):
+        call = "case_force_approach_sim(%r, %r, 5000)" % (cal_path, side)
+        here = on_cpython(call)
+        assert here == on_micropython(call)
+        assert here["near_steps"] >= 120 and here["largest_near_um"] == 1, (side, here)
+
+
 def test_friction_trim_brings_a_wrong_h_back_to_what_the_loop_meets(tmp_path):
     """The friction trim (host/guided/friction_trim.py) on the simulated actuator: the model's
     exact F0 with the block's friction (0.30 N in boards/sim.json) given as 0.45 N or 0.18 N.
@@ -260,7 +273,9 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     0.30 N. The loop then holds the load about 3 % short of the targets (checked on one side). The
     trim brings h back (the friction change and F0's error separated), its holds measure F0's error
     (1-6 % of each target), it writes the corrected F0 table and its inverse, and the same force
-    steps then meet 1.5 % on both sides (1.1 % when written)."""
+    steps then meet 2 % on both sides (1.1 % when written; 1.4 and 1.6 % since the setpoint takes
+    the last of its ramp at half the rate, [force-approach], which 60 offline cases on drawn
+    actuators favour: docs/robustness.md, "Stop 44")."""
     from host.calibration.file import force_table_section, read_calibration, write_calibration
     from host.guided.friction_trim import SIDES, trim_magnitudes, trimmed_friction, trimmed_sections
 
@@ -285,7 +300,7 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     doc.update(sections)
     write_calibration(path, doc)
     after = {side: _worst_step_error(path, side, sign) for side, sign in SIDES.items()}
-    assert max(after.values()) < 0.015, (before, after, lines)
+    assert max(after.values()) < 0.02, (before, after, lines)
 
 
 def test_bench_gauge_reads_the_load_a_bench_would(cal_path, tmp_path):
