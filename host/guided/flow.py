@@ -72,9 +72,9 @@ class Options:
 
 def follow_the_actuator(opts, session):
     """Fill in what follows the actuator's stroke (host/guided/stroke.py) unless given: the stroke
-    itself, the range a pot's sweep must cover (90 % of it; pot_calibration.calibrate_pots narrows it to 90 % of the
-    end stops' distance as each pot's reference read them, at least 80 % of the stroke), the gauge's
-    anchor (75 % along it)."""
+    itself, the range a pot's sweep must cover (90 % of it; the pots step narrows it to 90 % of the
+    end stops' distance as each pot's reference read them, which must reach 80 % of the stroke:
+    pot_calibration.sweep_limits), the gauge's anchor (75 % along it)."""
     import dataclasses
 
     from host.guided import stroke
