@@ -314,12 +314,12 @@ class Controller:
                 if rate <= 0:
                     sp = goal
                 elif goal > sp + rate or goal < sp - rate:
-                    # [force-approach] the last _APPROACH_UM to the goal at half the rate (>= 1 um)
-                    gap = goal - sp
+                    # [force-approach] the last _APPROACH_UM to the goal at half the rate (>= 1 um; within `rate` of it, the goal)
+                    togo = goal - sp
                     stp = rate
-                    if gap < _APPROACH_UM and gap > -_APPROACH_UM:
+                    if togo < _APPROACH_UM and togo > -_APPROACH_UM:
                         stp = (rate + 1) >> 1
-                    if gap > 0:
+                    if togo > 0:
                         if sp < defl + _DEFL_LEAD:
                             sp = sp + stp
                     elif sp > defl - _DEFL_LEAD:

@@ -2,8 +2,12 @@
 
 All work on plain arrays (raw codes, reference mm, direction +1/-1) so they can be tested on
 synthetic data: range covered, monotone, noise level, rail-clipped samples, forward/backward
-hysteresis. Limits are for a 60 mm stroke measured by a 12-bit ADC; the guided calibration sets
-the range to its actuator's stroke (host/guided/flow.py follow_the_actuator).
+hysteresis, and the end stops' distance. Limits are for a 60 mm stroke measured by a 12-bit ADC;
+the guided calibration sets the range and the stops' distance to its actuator's stroke
+(host/guided/flow.py follow_the_actuator) and, where the pots step measured the end stops, the
+range to 90 % of their distance as that pot's reference read them (pot_calibration.sweep_limits:
+the sweep includes the still records at the stops, so there the stops check is the one that
+can fail).
 """
 
 from dataclasses import dataclass

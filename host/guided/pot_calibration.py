@@ -41,7 +41,8 @@ def adc_sweep(session, rig, pot, duty, ref_scale, say):
 
 def end_stops(stops, adc_bits, ref_scale):
     """(low, high) reference mm and the median pot-2 code at the block's two end stops, from
-    the records standing still at each end of pot 2's sweep (the reference is on pot 2 then)."""
+    the records standing still at each end of a pot's sweep (the reference is on that pot then;
+    the frame and the stroke section use pot 2's, the checks each pot's own: sweep_limits)."""
     out = {}
     for end in ("low", "high"):
         rec = stops.get(end)

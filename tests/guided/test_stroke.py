@@ -54,6 +54,7 @@ def test_the_guided_options_follow_the_session_unless_given():
 
     opts = follow_the_actuator(Options(), Session())
     assert opts.stroke == (0.0, 45.0) and opts.limits.min_range_mm == pytest.approx(40.5) and opts.anchor_mm == 33.8
+    assert opts.limits.min_stops_mm == pytest.approx(36.0)  # 80 % of 45 mm, not the 0-60 mm default's 48
     given = follow_the_actuator(Options(anchor_mm=30.0), Session())
     assert given.anchor_mm == 30.0
 

@@ -274,8 +274,8 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     trim brings h back (the friction change and F0's error separated), its holds measure F0's error
     (1-6 % of each target), it writes the corrected F0 table and its inverse, and the same force
     steps then meet 2 % on both sides (1.1 % when written; 1.4 and 1.6 % since the setpoint takes
-    the last of its ramp at half the rate, [force-approach], which 60 offline cases on drawn
-    actuators favour: docs/robustness.md, "Stop 44")."""
+    the last of its ramp at half the rate, [force-approach], which two offline tallies of 30 cases
+    on drawn actuators favour: docs/robustness.md, "Stop 44")."""
     from host.calibration.file import force_table_section, read_calibration, write_calibration
     from host.guided.friction_trim import SIDES, trim_magnitudes, trimmed_friction, trimmed_sections
 
