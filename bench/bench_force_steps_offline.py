@@ -37,6 +37,8 @@ Call (from the repository root, the venv's python):
 paper's force runs hook it; the fibre is hooked from where the block is, as the virtual rig does):
 the same board at another block position, another realisation of the noise and the friction's
 stick states, to see how much a result moves;
+--targets MN,MN,... replaces the paper's 5, 10, 15, 10, 5 N with another sequence (the held-out
+draws go down to about 2.5 N); the per-seed line's first column is then its first step;
 --anchors UM,UM,... runs each seed at several and prints a tally over all (seed, anchor) cases,
 and per seed the mean, spread and range of its worst step over the anchors.
 Diagnostics (each changes what is run, and says so in the tally line):
@@ -84,7 +86,7 @@ import tempfile
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import spring_diagnostics  # noqa: E402
-from offline_force_rig import (PRELOAD, ROOT, RUN, SIDES, TARGETS, calibration, gauge_anchor_um,  # noqa: E402
+from offline_force_rig import (PRELOAD, ROOT, RUN, SIDES, calibration, gauge_anchor_um,  # noqa: E402
                                override_params)
 
 def summary(runs, seed, exact, tmp):
@@ -98,17 +100,19 @@ def summary(runs, seed, exact, tmp):
         return None
     rows = []
     for side, sign in SIDES:
-        rows += case_force_steps_sim(cal, side, [sign * t for t in TARGETS], anchor=RUN.anchor_um, settle_ticks=RUN.settle,
+        rows += case_force_steps_sim(cal, side, [sign * t for t in RUN.targets], anchor=RUN.anchor_um, settle_ticks=RUN.settle,
                                      hold_ticks=RUN.hold, preload=PRELOAD, board_path=board, measured=RUN.measured)
 
     def worst(sel):
         ss = max(abs(load - t) / abs(t) * 100 for t, _, load in rows if sel(t))
         es = max(abs(e - load) / max(abs(load), 1) * 100 for t, e, load in rows if sel(t))
         return ss, es
-    ss5, es5 = worst(lambda t: abs(t) == 5000)
+    first = RUN.targets[0]  # the smallest step, 5 N in the paper's sequence
+    ss5, es5 = worst(lambda t: abs(t) == first)
     ss, es = worst(lambda t: True)
-    print("%-5s %-5s anchor %5d  5 N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
-          % (seed, "exact" if exact else "refit" if RUN.refit else "run", RUN.anchor_um, ss5, es5, ss, es), flush=True)
+    print("%-5s %-5s anchor %5d  %g N: ss %5.2f %% est %5.2f %% | all: ss %5.2f %% est %5.2f %%"
+          % (seed, "exact" if exact else "refit" if RUN.refit else "run", RUN.anchor_um, first / 1000.0, ss5, es5, ss, es),
+          flush=True)
     return max(ss, es)
 
 
@@ -170,7 +174,7 @@ def trace(runs, seed, side, exact, tmp):
           % (seed, side, "exact" if exact else "refit" if RUN.refit else "run", h))
     print("target  spring_ext  F0filt_ext    gap  est-load  spring_sd  load-target")
     prev = PRELOAD
-    for t in TARGETS:
+    for t in RUN.targets:
         app.set_target(sign * t)
         s = 1 if t > prev else -1
         sp_ext = f0_ext = None
@@ -226,6 +230,8 @@ def main():
                     help="with --trim: the trim's targets as fractions of the range (default friction_trim.TRIM_FRACTIONS)")
     ap.add_argument("--ident", action="store_true",
                     help="check F0 of both calibrations against a replay of the force identification")
+    ap.add_argument("--targets", metavar="MN,MN,...",
+                    help="the step sequence's magnitudes, mN (default 5000,10000,15000,10000,5000, the paper's)")
     ap.add_argument("--anchor", type=int, default=45000, help="gauge anchor, um (default 45000)")
     ap.add_argument("--anchors", help="several anchors, um, comma-separated (a tally over all cases)")
     ap.add_argument("--at-gauge", action="store_true",
@@ -281,6 +287,8 @@ def main():
         measurement.filter_shift = lambda loop_hz: a.filter_shift
     if a.spring and a.loop_hz and a.loop_hz != 1000:
         sys.exit("--spring observer models one step as 1 ms: use it at the 1 kHz loop (no --loop-hz)")
+    if a.targets:
+        RUN.targets = tuple(int(v) for v in a.targets.split(","))
     if not os.path.isdir(a.runs):
         sys.exit("robustness data directory not found: %s (give it with --runs DIR)" % a.runs)
     os.chdir(ROOT)
@@ -309,7 +317,8 @@ def main():
             if len(anchors) > 1:
                 print_spread(per_seed)
             if worst:
-                changed = a.param + (["oversample=%d" % a.oversample] if a.oversample else []) + \
+                changed = a.param + (["steps %s mN" % a.targets] if a.targets else []) + \
+                    (["oversample=%d" % a.oversample] if a.oversample else []) + \
                     (["oversample x%d" % a.oversample_times] if a.oversample_times else []) + \
                     (["loop %d Hz" % a.loop_hz] if a.loop_hz else []) + \
                     (["noise=%g LSB" % a.noise] if a.noise is not None else []) + \

@@ -22,6 +22,7 @@ class Run:
     """What this invocation runs, set once from the options (main) and read by every case; the
     defaults are the bench's plain run. bench/bench_force_error_budget.py sets it as well."""
 
+    targets = TARGETS  # mN magnitudes of the step sequence (--targets)
     settle = 1500  # ticks each step settles, then is measured over `hold` (1.5 s and 0.5 s at 1 kHz)
     hold = 500
     anchor_um = 45000  # the gauge anchor in force now (--anchor, --anchors: other realisations of a board)
