@@ -12,7 +12,7 @@ import sys
 import time
 
 from firmware import hal
-from firmware.controller import EF, FORCE, IDLE, OPEN_LOOP, PARKED, POSITION, Controller
+from firmware.controller import EF, FORCE, IDLE, OPEN_LOOP, PARKED, POSITION, SP_FRAC, Controller
 from firmware.measurement import STROKE_CLAMP_UM, Measurement, board_problem
 from firmware.motor import Motor
 from firmware.portable import release
@@ -262,6 +262,7 @@ class App:
             c.set_force_target(0)
             c.fdir = 0
             c.defl_sp = c.meas.defl  # the ramp starts from the deformation the spring has now
+            c.st[SP_FRAC] = 0
         else:
             c.target = 0
         c.mode = mode

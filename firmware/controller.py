@@ -76,10 +76,10 @@ _M_DEFL = const(2)
 _M_FORCE = const(3)
 _M_FRIC = const(8)
 _M_FF_DUTY = const(15)  # measurement.FF_DUTY
+_M_FS_SHIFT = const(18)  # measurement.FS_SHIFT
 _PARK_STEPS = const(50)  # position mode: steps inside the deadband before the block counts as parked
 _DEFL_LEAD = const(60)  # force mode: um the deformation setpoint may lead the measured deformation
 _HOLD_SHIFT = const(1)  # force mode: the PI gains halved while the spring holds its goal (within _DEFL_LEAD)
-_APPROACH_UM = const(128)  # force mode: the deformation setpoint's last um before its goal go at half its rate
 
 # Controller.st
 MODE = const(0)
@@ -100,7 +100,8 @@ LIM_HI = const(14)
 EF = const(15)  # position mode: 16 x the error low-passed over ~16 steps, um (decides the friction feed-forward)
 PARKED = const(16)  # position mode with feed-forward: steps inside the deadband, up to _PARK_STEPS (parked)
 TICK = const(17)  # the step clock's resolution, us: a gap or a step is late only beyond what it can misread
-WORDS = const(18)
+SP_FRAC = const(18)  # force mode: the setpoint's move carried over, 1/16 um ([force-approach])
+WORDS = const(19)
 
 # the step's record for the telemetry ring, in the order of protocol.FIELDS
 _R_T = const(0)
@@ -245,6 +246,7 @@ class Controller:
         force = 0
         fric = 0
         ffd = 0
+        fsh = 0
         if has_meas:
             self._update(s[_S_RAW1], s[_S_RAW2])
             m = ptr32(self._meas.st)
@@ -254,6 +256,7 @@ class Controller:
             force = ((m[_M_FORCE] + _B29) & _M30) - _B29
             fric = m[_M_FRIC]
             ffd = m[_M_FF_DUTY]
+            fsh = m[_M_FS_SHIFT]
         if f[_F_FAULTS]:
             mode = IDLE
             c[MODE] = IDLE
@@ -314,11 +317,17 @@ class Controller:
                 if rate <= 0:
                     sp = goal
                 elif goal > sp + rate or goal < sp - rate:
-                    # [force-approach] the last _APPROACH_UM to the goal at half the rate (>= 1 um; within `rate` of it, the goal)
                     togo = goal - sp
+                    away = togo if togo > 0 else -togo
                     stp = rate
-                    if togo < _APPROACH_UM and togo > -_APPROACH_UM:
-                        stp = (rate + 1) >> 1
+                    if away < rate << fsh:
+                        # [force-approach] closing in, away / 2**fsh a step (the estimate's average): exponential, in 1/16 um
+                        q = (away << 4) >> fsh
+                        if q < 1:
+                            q = 1
+                        q = q + c[SP_FRAC]  # away < 2**18 (+-STROKE_CLAMP_UM): q < 2**23
+                        stp = q >> 4
+                        c[SP_FRAC] = q & 15
                     if togo > 0:
                         if sp < defl + _DEFL_LEAD:
                             sp = sp + stp

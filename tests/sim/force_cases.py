@@ -254,8 +254,8 @@ def case_force_contact_sim(path, side, target, gap_um, board_path="boards/sim.js
 
 def case_force_approach_sim(path, side, target, ticks=1500):
     """A force step from a 0.5 N preload: how the deformation setpoint closes on its goal (the
-    band edge it ramps to). Returns the steps it moved with its goal 3-127 um ahead, and the
-    largest move it made in one of them (um)."""
+    band edge it ramps to). Returns the steps it spent with its goal 3-127 um ahead and 3-16 um
+    ahead (moving or not), and the largest move it made in one of the latter (um)."""
     import boards.sim.machine as sim
 
     app, world, sign = _hooked_on_side(path, side, 45000, 200)
@@ -265,6 +265,7 @@ def case_force_approach_sim(path, side, target, ticks=1500):
     app.set_target(sign * target)
     c = app.ctrl
     near = 0
+    end = 0
     largest = 0
     prev = c.defl_sp
     k = 0
@@ -275,11 +276,13 @@ def case_force_approach_sim(path, side, target, ticks=1500):
         goal = c.force_set[c.fdir + 1]
         ahead = (goal - prev) if goal > prev else (prev - goal)
         moved = (sp - prev) if sp > prev else (prev - sp)
-        if 2 < ahead < 128 and moved:
+        if 2 < ahead < 128:
             near += 1
+        if 2 < ahead <= 16:
+            end += 1
             if moved > largest:
                 largest = moved
         prev = sp
         k += 1
     app.shutdown()
-    return {"near_steps": near, "largest_near_um": largest}
+    return {"near_steps": near, "end_steps": end, "largest_end_um": largest}
