@@ -29,6 +29,7 @@ COPIES = {
     ("controller", "_M_FORCE"): ("measurement", "FORCE"),
     ("controller", "_M_FRIC"): ("measurement", "FRIC"),
     ("controller", "_M_FF_DUTY"): ("measurement", "FF_DUTY"),
+    ("controller", "_M_FS_SHIFT"): ("measurement", "FS_SHIFT"),
     ("measurement", "STROKE_CLAMP_UM"): ("protocol", "POSITION_LIMIT_UM"),
     ("measurement", "_DF_PWL_OFFSET"): ("pwl_fixed", "DF_PWL_OFFSET"),
     ("calibration", "STROKE_MAX_UM"): ("protocol", "POSITION_LIMIT_UM"),  # not viper: keeps calibration.py light

@@ -255,7 +255,8 @@ def case_force_contact_sim(path, side, target, gap_um, board_path="boards/sim.js
 def case_force_approach_sim(path, side, target, ticks=1500):
     """A force step from a 0.5 N preload: how the deformation setpoint closes on its goal (the
     band edge it ramps to). Returns the steps it spent with its goal 3-127 um ahead and 3-16 um
-    ahead (moving or not), and the largest move it made in one of the latter (um)."""
+    ahead (moving or not), the largest move it made in one of the latter (um), and whether it sits
+    on its goal at the end (it closes on it, it does not stall short of it)."""
     import boards.sim.machine as sim
 
     app, world, sign = _hooked_on_side(path, side, 45000, 200)
@@ -284,5 +285,6 @@ def case_force_approach_sim(path, side, target, ticks=1500):
                 largest = moved
         prev = sp
         k += 1
+    at_goal = c.defl_sp == c.force_set[c.fdir + 1]
     app.shutdown()
-    return {"near_steps": near, "end_steps": end, "largest_end_um": largest}
+    return {"near_steps": near, "end_steps": end, "largest_end_um": largest, "at_goal": at_goal}
