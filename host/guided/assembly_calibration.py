@@ -15,19 +15,35 @@ from firmware.calibration import CalibrationError, convert, load_calibration
 from host.errors import UserError
 from host.calibration.file import force_table_section, poly_section
 from host.fitting.assembly import STOP_ZONE_UM, binned_peak, df_table, fit_df, near_the_stops
-from host.guided import acquire
+from host.guided import acquire, stroke
 from host.guided.outcome import StepOutcome
 
 
-def positions_um(calibration_path, raw1, raw2):
-    """(D1, D2) in um from raw codes through the firmware's converters and the file's constants."""
+def pots_calibration(calibration_path):
+    """The calibration file's constants, which must hold both pots' curves."""
     try:
-        cal = load_calibration(str(calibration_path))
+        return load_calibration(str(calibration_path))
     except CalibrationError as exc:
         raise UserError("the assembly step needs both pots calibrated first (%s): %s" % (calibration_path, exc)) from None
+
+
+def positions_um(cal, raw1, raw2):
+    """(D1, D2) in um from raw codes through the firmware's converters and the file's constants."""
     d1 = np.array([convert(cal.pot1[0], int(c), cal.pot1[1]) for c in raw1], dtype=float)
     d2 = np.array([convert(cal.pot2[0], int(c), cal.pot2[1]) for c in raw2], dtype=float)
     return d1, d2
+
+
+def min_sweep_mm(limits, stroke_um):
+    """The range in D1 the Df sweep must cover: SWEEP_FRACTION of the distance between the end
+    stops the pots step measured (the file's stroke section, in D2), as that step checks each
+    pot's sweep against its own stops (pot_calibration.sweep_limits), never more than the nominal
+    limits.min_range_mm. Without a stroke section (a manual reference), the nominal range: one
+    drawn actuator's 43.8 mm stroke had its stops 38.7 mm apart in D2 and failed the nominal
+    39.4 mm with a full 37.9 mm sweep."""
+    if stroke_um is None:
+        return limits.min_range_mm
+    return min(limits.min_range_mm, stroke.SWEEP_FRACTION * (stroke_um[1] - stroke_um[0]) / 1000.0)
 
 
 def calibrate_assembly(session, rig, prompter, opts, calibration_path):
@@ -36,7 +52,8 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
     records, direction = acquire.sweep(session.client, opts.duty, prompter.say)
     if len(records) < 50:
         return StepOutcome("assembly", {}, ["assembly: almost no data (did the block move?)"], [], ok=False)
-    d1, d2 = positions_um(calibration_path, records[:, acquire.COL["raw1"]], records[:, acquire.COL["raw2"]])
+    cal = pots_calibration(calibration_path)
+    d1, d2 = positions_um(cal, records[:, acquire.COL["raw1"]], records[:, acquire.COL["raw2"]])
     near = near_the_stops(d2, STOP_ZONE_UM)
     d1, d2, direction = d1[~near], d2[~near], direction[~near]
     x = d1 / 1000.0
@@ -86,9 +103,11 @@ def calibrate_assembly(session, rig, prompter, opts, calibration_path):
         lines.append("Df: the table leaves a peak of %.3f mm of single samples, %.3f mm of 1 mm bin means (rms %.1f um)"
                      % (np.max(np.abs(resid)), binned_peak(x, resid), 1000 * np.sqrt(np.mean(resid**2))))
         order = len(kx)
-    ok = span >= opts.limits.min_range_mm
+    min_span = min_sweep_mm(opts.limits, cal.stroke)
+    ok = span >= min_span
     if not ok:
-        lines.append("Df: FAIL the sweep covered only %.1f mm: let the block run end to end" % span)
+        lines.append("Df: FAIL the sweep covered only %.1f mm of the %.1f mm it needs: let the block run end to end"
+                     % (span, min_span))
     stats = {"order": order, "model": "table" if table is not None else "poly",
              "peak_before_mm": float(np.max(np.abs(df))), "peak_after_mm": float(np.max(np.abs(resid))),
              "peak_after_binned_mm": binned_peak(x, resid),

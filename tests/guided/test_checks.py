@@ -105,3 +105,15 @@ def test_a_pot_whose_mount_shrinks_its_scale_is_checked_against_its_own_end_stop
     jammed, stops = sweep_limits(nominal, {"low": (1.6, 1700), "high": (21.6, 2600)})
     assert failed(stops) == {"stops"} and "jams" in stops[0].advice
     assert sweep_limits(nominal, None) == (nominal, [])  # stops not measured (a manual reference): the nominal range
+
+
+def test_the_df_sweep_is_checked_against_the_end_stops_the_pots_step_measured():
+    # One drawn actuator (seed 202611272311): a 43.8 mm stroke, its end stops 38.7 mm apart in D2;
+    # the Df sweep covered 37.9 mm and failed the nominal 0.9 x 43.8 = 39.4 mm.
+    from host.guided.assembly_calibration import min_sweep_mm
+
+    nominal = Limits(min_range_mm=0.9 * 43.8, min_stops_mm=0.8 * 43.8)
+    assert min_sweep_mm(nominal, [1100, 39800]) == pytest.approx(0.9 * 38.7)
+    assert 37.9 >= min_sweep_mm(nominal, [1100, 39800])
+    assert min_sweep_mm(nominal, [-1500, 45000]) == nominal.min_range_mm  # never looser than nominal there
+    assert min_sweep_mm(nominal, None) == nominal.min_range_mm  # no stops measured (a manual reference)
