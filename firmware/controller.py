@@ -316,25 +316,26 @@ class Controller:
                 rate = p[P_DEFL_RATE]
                 if rate <= 0:
                     sp = goal
-                elif goal > sp + rate or goal < sp - rate:
+                elif goal != sp:
                     togo = goal - sp
                     away = togo if togo > 0 else -togo
                     stp = rate
                     if away < rate << fsh:
-                        # [force-approach] closing in, away / 2**fsh a step (the estimate's average): exponential, in 1/16 um
+                        # [force-approach] closing in, away / 2**fsh a step (the estimate's average): exponential, in 1/16 um,
+                        # to the goal itself (a last jump of up to `rate` is 8 um at 250 Hz)
                         q = (away << 4) >> fsh
                         if q < 1:
                             q = 1
                         q = q + c[SP_FRAC]  # away < 2**18 (+-STROKE_CLAMP_UM): q < 2**23
                         stp = q >> 4
                         c[SP_FRAC] = q & 15
+                    if stp > away:
+                        stp = away
                     if togo > 0:
                         if sp < defl + _DEFL_LEAD:
                             sp = sp + stp
                     elif sp > defl - _DEFL_LEAD:
                         sp = sp - stp
-                else:
-                    sp = goal
                 c[DEFL_SP] = sp
                 # [force-hold] half the gains while holding the goal (the integral is in duty:
                 # changing ki does not move the output)

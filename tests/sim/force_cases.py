@@ -255,8 +255,9 @@ def case_force_contact_sim(path, side, target, gap_um, board_path="boards/sim.js
 def case_force_approach_sim(path, side, target, ticks=1500):
     """A force step from a 0.5 N preload: how the deformation setpoint closes on its goal (the
     band edge it ramps to). Returns the steps it spent with its goal 3-127 um ahead and 3-16 um
-    ahead (moving or not), the largest move it made in one of the latter (um), and whether it sits
-    on its goal at the end (it closes on it, it does not stall short of it)."""
+    ahead (moving or not), the largest move it made with its goal 1-16 um ahead (um; the last
+    um too, where a jump to the goal would show), and whether it sits on its goal at the end (it
+    closes on it, it does not stall short of it)."""
     import boards.sim.machine as sim
 
     app, world, sign = _hooked_on_side(path, side, 45000, 200)
@@ -281,8 +282,8 @@ def case_force_approach_sim(path, side, target, ticks=1500):
             near += 1
         if 2 < ahead <= 16:
             end += 1
-            if moved > largest:
-                largest = moved
+        if 0 < ahead <= 16 and moved > largest:
+            largest = moved
         prev = sp
         k += 1
     at_goal = c.defl_sp == c.force_set[c.fdir + 1]

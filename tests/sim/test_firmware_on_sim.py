@@ -228,7 +228,8 @@ def test_the_force_setpoint_closes_on_its_goal_exponentially(cal_path):
     the spring neither reaches the edge at speed nor overshoots it (the block follows the spring's
     peaks, which the average does not see). From 128 to 3 um ahead that takes 64 ln(128/3) = 240
     steps (at full speed 63, at half 125), from 16 to 3 um 107 (half speed: 14), none of more than
-    1 um, and it gets there (1.5 s after the step it sits on its goal)."""
+    1 um down to the goal itself (no last jump of defl_rate_um: 8 um at 250 Hz), and it gets there
+    (1.5 s after the step it sits on its goal)."""
     for side in ("high", "low"):
         call = "case_force_approach_sim(%r, %r, 5000)" % (cal_path, side)
         here = on_cpython(call)
