@@ -19,7 +19,8 @@ A point taken just after the force turned (the last loading level, then the firs
 ones) sits at the band's edge only if the spring has since moved 2h: until then the block has
 not slid, and the gauge holds whatever friction the turn left (seed 1004 of docs/robustness.md:
 one 1.5 N unloading level under a 2 x 0.96 N band, friction -0.57 N where the model says
--0.92). Given the points' order (`loading`), `fit_force` leaves such points out and fits again.
+-0.92). So does a round's first level, where the block met the fibre after sliding free. Given
+the points' order (`loading`), `fit_force` leaves such points out and fits again.
 """
 
 from dataclasses import dataclass, field
@@ -132,23 +133,31 @@ def cv_rms_table(d, f, s, k, friction, h0, full_knots):
 
 
 def inside_band(spring_n, loading, h):
-    """Mask of the points, in the order taken, that follow a turn of the force (loading, then
-    unloading) while the spring force is still within 2h of its value at the turn: the block has
-    not slid since, so its friction is somewhere inside the band, not the -h the model gives it.
-    A loading point after unloading ones starts a new round from a slack fibre (the force step
-    moves the block there), where the block slides from the start: not a turn."""
+    """Mask of the points, in the order taken, whose block may rest anywhere inside its friction
+    band, not at the edge (-+h) the model gives it:
+    - after a turn of the force (loading, then unloading), while the spring force is still within
+      2h of its value at the turn: the block has not slid since;
+    - a round's first level (a loading point after unloading ones, or the very first), and those
+      after it within 2h of it. The force step starts each round from a slack fibre (it moves the
+      block there to tare the gauge): the block slides free, meets the fibre at speed and comes
+      to rest wherever the fibre's rebound leaves it. Replayed from the fresh runs of stops 45 and
+      46, those first levels sat 0.2-0.55 N off the edge on most actuators, and the fit bent F0
+      toward them: 30-70 mN too steep at 2-4 N (docs/robustness.md, "Stop 47").
+    """
     out = np.zeros(len(spring_n), dtype=bool)
     turn = None
-    for i in range(1, len(spring_n)):
-        if loading[i]:
-            turn = None
-        elif loading[i - 1]:
+    for i in range(len(spring_n)):
+        if loading[i] and (i == 0 or not loading[i - 1]):
+            out[i] = True
+            turn = spring_n[i]
+            continue
+        if i > 0 and loading[i] != loading[i - 1]:
             turn = spring_n[i - 1]
         if turn is not None:
             if abs(spring_n[i] - turn) < 2.0 * h:
                 out[i] = True
             else:
-                turn = None  # slid: every later point of this unloading is on the edge
+                turn = None  # slid: every later point of this run of levels is on the edge
     return out
 
 
