@@ -190,7 +190,7 @@ class PaperRun:
                      "hysteresis_n": frc["hysteresis_n"], "friction_n": frc["friction_n"],
                      "rms_n": frc["rms_n"], "rms_plain_n": frc["rms_plain_n"], "sides": list(frc["sides"]),
                      "kind": frc.get("kind", "poly"), "knots_d": optional(frc.get("knots_d")),
-                     "knots_f": optional(frc.get("knots_f"))}
+                     "knots_f": optional(frc.get("knots_f")), "kinks_mm": optional(frc.get("kinks_mm"))}
         method = {"df_order": opts.df_order, "force_order": opts.force_order, "gauge_sides": opts.gauge_sides,
                   "friction": opts.friction, "budget": opts.budget, "rounds": opts.rounds,
                   "force_order_chosen": int(frc["order"])}

@@ -13,7 +13,8 @@ integer fixes it (the paper's quadratics: 2).
 A spring pair whose preload ends inside the force range halves its stiffness at one deformation,
 a kink no polynomial of order <= 5 follows: when cross-validation says a free-knot table
 (host/fitting/piecewise_linear.py) predicts clearly better, F0 is that table, and d(F0) its exact
-inverse.
+inverse. A cubic spline with a kink on each side (host/fitting/spring_spline.py) then replaces
+either when it predicts better still; the firmware gets it as a dense table.
 
 A point taken just after the force turned (the last loading level, then the first unloading
 ones) sits at the band's edge only if the spring has since moved 2h: until then the block has
@@ -29,8 +30,10 @@ import numpy as np
 
 from host.errors import UserError
 from host.fitting.cross_validation import cv_rms as _cv_rms
-from host.fitting.cross_validation import lowest_near_best
+from host.fitting.cross_validation import NEAR_BEST, lowest_near_best
 from host.fitting.piecewise_linear import fit_pwl, hat_matrix
+from host.fitting.spring_spline import cv_rms as spline_cv_rms
+from host.fitting.spring_spline import fit_spline, tabulate
 
 MAX_ORDER = 5
 
@@ -50,6 +53,8 @@ class ForceFit:
     knots_d: np.ndarray = None
     knots_f: np.ndarray = None
     table_scores: dict = field(default_factory=dict)  # knots -> cross-validated rms (N)
+    spline_scores: dict = field(default_factory=dict)  # "cubic"/"split cubic" -> cross-validated rms (N)
+    kinks_mm: list = None  # when F0 is a spring spline's table (host/fitting/spring_spline.py): its kinks
     left_out: np.ndarray = None  # points inside the friction band after a turn (mask), not fitted
 
     def f0(self, d):
@@ -204,6 +209,8 @@ def _fit_force(d_mm, force_n, s, order, friction, tables):
                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
     if tables and len(d) >= 12:
         _try_table(fit, d, f, s, friction, min(scores.values()))
+    if tables and len(d) >= SPLINE_MIN_POINTS:
+        _try_spline(fit, d, f, s, friction, min(fit.table_scores.values()) if fit.kind == "pwl" else scores[order])
     return fit
 
 
@@ -279,6 +286,39 @@ def _try_table(fit, d, f, s, friction, poly_cv):
     fit.kind, fit.knots_d, fit.knots_f, fit.friction_n = "pwl", kx, values, h
     fit.rms_n, fit.max_n = float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid)))
     fit.rms_d_mm = float(np.sqrt(np.mean(rd**2)))
+
+
+SPLINE_MIN_POINTS = 20  # a spline has up to 9 numbers (and h): cross-validation needs several points for each
+SPLINE_SHAPES = {"cubic": False, "split cubic": True}
+SPLINE_GAIN = 0.9  # the spline replaces a polynomial when its hold-out error is at most this fraction of the polynomial's
+
+
+def _try_spline(fit, d, f, s, friction, chosen_cv):
+    """Replace F0 by a spring spline's table (host/fitting/spring_spline.py) when it predicts
+    clearly better than the polynomial chosen so far (cross-validated rms at most SPLINE_GAIN of
+    `chosen_cv`: on a spring with no lift-off in range a spline with a kink put anywhere matches
+    about as well as a polynomial, and then the paper's polynomial stays), or, when a free-knot
+    table was chosen (a kink is there), about as well as the table (within NEAR_BEST, the margin
+    by which the simpler of two models is taken): the spline has fewer numbers than a table of
+    six or more knots and puts its kinks where the levels on either side say, where the table
+    puts its knots where the noise says; replayed over fresh actuators, the spline was the closer
+    at 2-4 N (docs/robustness.md, "Stop 48")."""
+    fit.spline_scores = {name: spline_cv_rms(d, f, s, split, friction) for name, split in SPLINE_SHAPES.items()}
+    name = min(fit.spline_scores, key=fit.spline_scores.get)
+    if fit.spline_scores[name] > (NEAR_BEST if fit.kind == "pwl" else SPLINE_GAIN) * chosen_cv:
+        return
+    spline = fit_spline(d, f, s, SPLINE_SHAPES[name], friction)
+    if spline.friction_n < 0:  # as for the polynomial: friction cannot push the way the block slides
+        spline = fit_spline(d, f, s, SPLINE_SHAPES[name], False)
+    kx, values = tabulate(spline, float(np.min(d)), float(np.max(d)))
+    if not spring_like(kx, values):
+        return
+    h = spline.friction_n
+    resid = f - np.interp(d, kx, values) - h * s
+    spring = f - h * s
+    fit.kind, fit.knots_d, fit.knots_f, fit.friction_n, fit.kinks_mm = "pwl", kx, values, h, spline.kinks_mm
+    fit.rms_n, fit.max_n = float(np.sqrt(np.mean(resid**2))), float(np.max(np.abs(resid)))
+    fit.rms_d_mm = float(np.sqrt(np.mean((d - np.interp(spring, values, kx)) ** 2)))
 
 
 def hysteresis_n(d, f, loading, order):

@@ -256,13 +256,17 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "F0 %.2f..%.2f N" % (len(d), len(dt), " and ".join(sides), ", ".join("%.2f" % t for t in tares), dt.min(), dt.max(),
                              ft.min(), ft.max()),
         "force: F0(d) = %s  (N, mm)" % poly_text(fit.coeffs_f, "d") if fit.kind == "poly" else
+        "force: F0(d) is a cubic spline with a kink where a spring lifts off its preload, at d = %s mm (cross-validated "
+        "rms %.3f N against %.3f N for the best polynomial), tabulated in %d knots" % (
+            ", ".join("%.2f" % r for r in fit.kinks_mm) or "none", min(fit.spline_scores.values()),
+            min(fit.scores.values()), len(fit.knots_d)) if fit.kinks_mm is not None else
         "force: F0(d) is a %d-knot table (cross-validated rms %.3f N against %.3f N for the best polynomial): "
         "d %s mm -> F0 %s N" % (len(fit.knots_d), min(fit.table_scores.values()), min(fit.scores.values()),
                               ", ".join("%.3f" % v for v in fit.knots_d), ", ".join("%.2f" % v for v in fit.knots_f)),
         "force: block friction h = %.3f N; fit rms %.3f N, max %.3f N (without the friction term: rms %.3f N)%s" % (
             fit.friction_n, fit.rms_n, fit.max_n, plain.rms_n,
-            "; %d point(s) just after a turn left out: the spring had moved less than 2h since, so the block had "
-            "not slid and its friction was inside the band" % np.count_nonzero(fit.left_out)
+            "; %d point(s) left out just after a turn or at a round's start: the spring had moved less than 2h "
+            "since, so the block had not slid to the band's edge" % np.count_nonzero(fit.left_out)
             if np.any(fit.left_out) else "") if opts.friction else
         "force: no friction term (--no-friction); fit rms %.3f N, max %.3f N" % (fit.rms_n, fit.max_n),
         "force: d(F0) = %s  (mm, N of spring force; rms %.1f um)" % (
@@ -294,7 +298,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
     plot_force(png, d, f, s, fit, inside)
     data = {"d_mm": d, "force_n": f, "s": s, "loading": loading, "duty": duty, "order": fit.order_f,
             "coeffs_f": fit.coeffs_f, "coeffs_d": fit.coeffs_d, "kind": fit.kind,
-            "knots_d": fit.knots_d, "knots_f": fit.knots_f,
+            "knots_d": fit.knots_d, "knots_f": fit.knots_f, "kinks_mm": fit.kinks_mm,
             "friction_n": fit.friction_n, "hysteresis_n": hyst, "rms_n": fit.rms_n, "rms_plain_n": plain.rms_n,
             "sides": sides, "usable_n": usable}
     return StepOutcome("force", sections, lines, [png], ok=True, data=data)

@@ -69,14 +69,16 @@ def test_a_spring_that_lifts_off_inside_the_range_gets_a_table():
         assert abs(pwl(f_mn + FORCE_PWL_OFFSET, ki) - d_um) <= 2
 
 
-def _played_points(friction_n, top_n, noise_n=0.02, seed=3):
+def _played_points(friction_n, top_n, noise_n=0.02, seed=3, springs=None):
     """Loading/unloading rounds on both sides where the gauge follows the block's friction as a
     play operator does: the block slides only when the spring leaves the band +-h around the
     load, so right after the force turns the load stays where it was. Each round starts from a
     slack fibre, which the block meets after sliding free: it comes to rest anywhere in its band
     (drawn here), not at the edge. Returns the points in the order taken (d, f, s, loading), the
     true spring force at each, and the actuator."""
-    world = Actuator(dict(json.loads(open("boards/sim.json").read())["actuator"], adc_bits=12), 1)
+    board = json.loads(open("boards/sim.json").read())
+    board["actuator"]["springs"].update(springs or {})
+    world = Actuator(dict(board["actuator"], adc_bits=12), 1)
     grid = np.linspace(-2.0, 2.0, 4001)
     spring_of_grid = np.array([world.spring_force(v) for v in grid])
     rng = np.random.default_rng(seed)
@@ -139,6 +141,39 @@ def test_a_round_that_starts_inside_the_band_does_not_bend_f0():
     assert np.all(fit.left_out[starts]) and abs(fit.friction_n - 0.8) < 0.02, fit.friction_n  # 0.685 N when kept
     small = np.abs(spring) < 5.0  # 104 mN off when they are kept
     assert np.max(np.abs(fit.f0(d[small]) - spring[small])) < 0.04, np.max(np.abs(fit.f0(d[small]) - spring[small]))
+
+
+LIFTS_OFF_AT_12_N = {"k1_n_per_mm": 12.5, "k2_n_per_mm2": 1.0, "preload_n": 5.6}  # 202611280502's spring
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_a_spring_that_lifts_off_on_both_sides_gets_a_spline_true_near_zero(seed):
+    """A spring pair whose preload ends at 12 N on each side, taken in 15 N rounds: a free-knot
+    table (what the fit chose before the spline) is 24-43 mN off the spring at |F| <= 4 N on these
+    seeds, its knots placed by the noise; the spline puts its kinks where the springs lift off
+    and stays within 20 mN there."""
+    d, f, s, loading, spring, world = _played_points(0.3, 15.0, noise_n=0.03, seed=seed, springs=LIFTS_OFF_AT_12_N)
+    fit = fit_force(d, f, s, loading=loading)
+    assert fit.kind == "pwl" and fit.kinks_mm is not None, (fit.kind, fit.table_scores, fit.spline_scores)
+    assert np.allclose(fit.kinks_mm, [-world.d_release, world.d_release], atol=0.03), fit.kinks_mm
+    grid = np.linspace(d.min(), d.max(), 400)
+    truth = np.array([world.spring_force(v) for v in grid])
+    small = np.abs(truth) <= 4.0
+    assert np.max(np.abs(fit.f0(grid[small]) - truth[small])) < 0.02
+    assert abs(fit.friction_n - 0.3) < 0.02
+
+
+def test_a_spline_table_goes_to_the_firmware_with_its_exact_inverse():
+    d, f, s, loading, _, _ = _played_points(0.3, 15.0, noise_n=0.03, seed=1, springs=LIFTS_OFF_AT_12_N)
+    fit = fit_force(d, f, s, loading=loading)
+    assert fit.kinks_mm is not None
+    fwd = force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
+    inv = force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
+    kf, ki = poly_constants(fwd, "force"), poly_constants(inv, "force_inverse")
+    for d_um in range(int(1000 * d.min()), int(1000 * d.max()), 23):
+        f_mn = pwl(d_um + FORCE_PWL_OFFSET, kf)
+        assert abs(f_mn - 1000 * fit.f0(d_um / 1000)) <= 12  # mN: knots rounded to 1 um at up to 20 mN/um
+        assert abs(pwl(f_mn + FORCE_PWL_OFFSET, ki) - d_um) <= 2
 
 
 def test_a_table_flat_between_two_knots_is_not_a_spring():
