@@ -175,8 +175,9 @@ def _calibration_section(add, r):
     add("")
     ff = r["force_fit"]
     if ff.get("kinks_mm") is not None:
-        model = ("a cubic spline with a kink where a spring lifts off its preload, at d = %s mm, tabulated in %d knots "
-                 "(cross-validation chose it over the polynomials and free-knot tables; the best polynomial: F0 = %s)" % (
+        model = ("a cubic spline with a kink where a spring lifts off its preload (kinks at d = %s mm), tabulated in %d "
+                 "knots (cross-validation scored it within 5 %% of the best free-knot table, or 10 %% better than the "
+                 "polynomial; the best polynomial: F0 = %s)" % (
                      ", ".join("%.2f" % r for r in ff["kinks_mm"]) or "none", len(ff["knots_d"]), _poly(ff["coeffs_f"], "d")))
     elif ff.get("kind") == "pwl":
         model = ("a %d-knot table through (d mm, F0 N) %s, its inverse d(F0) the same knots (the spring's stiffness "

@@ -13,8 +13,10 @@ integer fixes it (the paper's quadratics: 2).
 A spring pair whose preload ends inside the force range halves its stiffness at one deformation,
 a kink no polynomial of order <= 5 follows: when cross-validation says a free-knot table
 (host/fitting/piecewise_linear.py) predicts clearly better, F0 is that table, and d(F0) its exact
-inverse. A cubic spline with a kink on each side (host/fitting/spring_spline.py) then replaces
-either when it predicts better still; the firmware gets it as a dense table.
+inverse. With the order left to cross-validation, a cubic spline with a kink on each side
+(host/fitting/spring_spline.py) then replaces the table when it predicts about as well (within
+NEAR_BEST), or the polynomial when it predicts clearly better (SPLINE_GAIN); the firmware gets it
+as a dense table.
 
 A point taken just after the force turned (the last loading level, then the first unloading
 ones) sits at the band's edge only if the spring has since moved 2h: until then the block has
@@ -195,7 +197,8 @@ def _fit_force(d_mm, force_n, s, order, friction, tables):
     if top < 1:
         raise UserError("force: too few points with the fibre taut (%d)" % len(d))
     scores = {n: cv_rms(d, f, s, n, friction) for n in range(1, top + 1)}
-    if order == "auto":
+    chosen = order == "auto"  # a fixed order asked for that polynomial (the paper's method: 2): no spline then
+    if chosen:
         order = lowest_near_best(scores)
     order = int(order)
     cf, h = _solve(d, f, s, order, friction)
@@ -209,7 +212,7 @@ def _fit_force(d_mm, force_n, s, order, friction, tables):
                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
     if tables and len(d) >= 12:
         _try_table(fit, d, f, s, friction, min(scores.values()))
-    if tables and len(d) >= SPLINE_MIN_POINTS:
+    if tables and chosen and len(d) >= SPLINE_MIN_POINTS:
         _try_spline(fit, d, f, s, friction, min(fit.table_scores.values()) if fit.kind == "pwl" else scores[order])
     return fit
 
@@ -288,7 +291,7 @@ def _try_table(fit, d, f, s, friction, poly_cv):
     fit.rms_d_mm = float(np.sqrt(np.mean(rd**2)))
 
 
-SPLINE_MIN_POINTS = 20  # a spline has up to 9 numbers (and h): cross-validation needs several points for each
+SPLINE_MIN_POINTS = 20  # a spline has up to 8 coefficients and 2 kinks (and h): cross-validation needs several points for each
 SPLINE_SHAPES = {"cubic": False, "split cubic": True}
 SPLINE_GAIN = 0.9  # the spline replaces a polynomial when its hold-out error is at most this fraction of the polynomial's
 
@@ -300,7 +303,7 @@ def _try_spline(fit, d, f, s, friction, chosen_cv):
     about as well as a polynomial, and then the paper's polynomial stays), or, when a free-knot
     table was chosen (a kink is there), about as well as the table (within NEAR_BEST, the margin
     by which the simpler of two models is taken): the spline has fewer numbers than a table of
-    six or more knots and puts its kinks where the levels on either side say, where the table
+    seven or more knots and puts its kinks where the levels on either side say, where the table
     puts its knots where the noise says; replayed over fresh actuators, the spline was the closer
     at 2-4 N (docs/robustness.md, "Stop 48")."""
     fit.spline_scores = {name: spline_cv_rms(d, f, s, split, friction) for name, split in SPLINE_SHAPES.items()}

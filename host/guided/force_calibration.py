@@ -256,7 +256,7 @@ def calibrate_force(session, rig, prompter, opts, calibration_path):
         "F0 %.2f..%.2f N" % (len(d), len(dt), " and ".join(sides), ", ".join("%.2f" % t for t in tares), dt.min(), dt.max(),
                              ft.min(), ft.max()),
         "force: F0(d) = %s  (N, mm)" % poly_text(fit.coeffs_f, "d") if fit.kind == "poly" else
-        "force: F0(d) is a cubic spline with a kink where a spring lifts off its preload, at d = %s mm (cross-validated "
+        "force: F0(d) is a cubic spline with a kink where a spring lifts off its preload (kinks at d = %s mm; cross-validated "
         "rms %.3f N against %.3f N for the best polynomial), tabulated in %d knots" % (
             ", ".join("%.2f" % r for r in fit.kinks_mm) or "none", min(fit.spline_scores.values()),
             min(fit.scores.values()), len(fit.knots_d)) if fit.kinks_mm is not None else

@@ -159,11 +159,12 @@ def plot_force(path, d, f, s, fit, inside=None):
     ax.plot(d[up], f[up], "^", color="tab:blue", ms=4, label="force rose (block slid toward 60 mm)")
     if np.any(inside):
         ax.plot(d[inside], f[inside], "o", mfc="none", color="0.3", ms=5,
-                label="just after a turn, inside the band (left out)")
+                label="just after a turn or a round's start, inside the band (left out)")
     grid = np.linspace(np.min(d), np.max(d), 200)
     spring = fit.f0(grid)
     ax.plot(grid, spring, "k-", lw=1, label="F0(d), %s (spring)" % (
-        "order %d" % fit.order_f if fit.kind == "poly" else "%d-knot table" % len(fit.knots_d)))
+        "order %d" % fit.order_f if fit.kind == "poly" else "%d-knot table" % len(fit.knots_d) if fit.kinks_mm is None
+        else "spline, kinks at %s mm" % (", ".join("%.2f" % r for r in fit.kinks_mm) or "none")))
     if fit.friction_n > 0:
         ax.fill_between(grid, spring - fit.friction_n, spring + fit.friction_n, color="0.8", alpha=0.6,
                         label="friction band +-%.2f N" % fit.friction_n)
