@@ -168,13 +168,14 @@ def inside_band(spring_n, loading, h):
     return out
 
 
-def fit_force(d_mm, force_n, s, order="auto", friction=True, tables=True, loading=None):
-    """F_gauge = F0(d) + h s and d(F0 = F_gauge - h s) by least squares: a ForceFit. With
+def fit_force(d_mm, force_n, s, order="auto", friction=True, tables=True, loading=None, spline=True):
+    """F_gauge = F0(d) + h s and d(F0 = F_gauge - h s) by least squares: a ForceFit (`tables`:
+    a free-knot table or spring spline may replace the polynomial; `spline`: the spline may). With
     `loading` (the points in the order taken, True while the force rose), points inside the
     friction band after a turn (inside_band, on the fitted F0 and h) are left out and the fit
     made again, until the set stops changing; `left_out` says which."""
     d, f, s = (np.asarray(v, dtype=float) for v in (d_mm, force_n, s))
-    fit = _fit_force(d, f, s, order, friction, tables)
+    fit = _fit_force(d, f, s, order, friction, tables, spline)
     fit.left_out = np.zeros(len(d), dtype=bool)
     if loading is None or not friction:
         return fit
@@ -184,12 +185,12 @@ def fit_force(d_mm, force_n, s, order="auto", friction=True, tables=True, loadin
         if np.array_equal(out, fit.left_out) or np.count_nonzero(~out) < 6:
             break
         keep = ~out
-        fit = _fit_force(d[keep], f[keep], s[keep], order, friction, tables)
+        fit = _fit_force(d[keep], f[keep], s[keep], order, friction, tables, spline)
         fit.left_out = out
     return fit
 
 
-def _fit_force(d_mm, force_n, s, order, friction, tables):
+def _fit_force(d_mm, force_n, s, order, friction, tables, spline):
     d = np.asarray(d_mm, dtype=float)
     f = np.asarray(force_n, dtype=float)
     s = np.asarray(s, dtype=float)
@@ -212,7 +213,7 @@ def _fit_force(d_mm, force_n, s, order, friction, tables):
                    float(np.sqrt(np.mean(rd**2))), order, order, scores)
     if tables and len(d) >= 12:
         _try_table(fit, d, f, s, friction, min(scores.values()))
-    if tables and chosen and len(d) >= SPLINE_MIN_POINTS:
+    if tables and spline and chosen and len(d) >= SPLINE_MIN_POINTS:
         _try_spline(fit, d, f, s, friction, min(fit.table_scores.values()) if fit.kind == "pwl" else scores[order])
     return fit
 
@@ -299,8 +300,9 @@ SPLINE_GAIN = 0.9  # the spline replaces a polynomial when its hold-out error is
 def _try_spline(fit, d, f, s, friction, chosen_cv):
     """Replace F0 by a spring spline's table (host/fitting/spring_spline.py) when it predicts
     clearly better than the polynomial chosen so far (cross-validated rms at most SPLINE_GAIN of
-    `chosen_cv`: on a spring with no lift-off in range a spline with a kink put anywhere matches
-    about as well as a polynomial, and then the paper's polynomial stays), or, when a free-knot
+    `chosen_cv`: a polynomial that predicts about as well stays, the paper's model; on a spring
+    with no lift-off in range the spline has no kink, since a kink must soften the spring, and
+    is a cubic whose curvature may change at d = 0), or, when a free-knot
     table was chosen (a kink is there), about as well as the table (within NEAR_BEST, the margin
     by which the simpler of two models is taken): the spline has fewer numbers than a table of
     seven or more knots and puts its kinks where the levels on either side say, where the table

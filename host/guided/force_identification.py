@@ -77,17 +77,22 @@ def poly_text(c, var):
 
 def identify(d, f, s, loading, duty, order="auto", friction=True):
     """The force step's fit of its taut points, in the order taken: (ForceFit, Drive, a note or
-    None). A table the firmware cannot hold gives way to the polynomial it beat (the note says
-    so); the drive is fitted on the points at the band's edge (not ForceFit.left_out)."""
-    fit = fit_force(d, f, s, order, friction=friction, loading=loading)
+    None). A table the firmware cannot hold gives way to the next simpler model: a spring
+    spline's to the free-knot table or polynomial the fit would have kept without it, a free-knot
+    table to the polynomial it beat (the note says so); the drive is fitted on the points at the
+    band's edge (not ForceFit.left_out)."""
     unexported = None
-    if fit.kind == "pwl":
+    for tables, spline in ((True, True), (True, False), (False, False)):
+        fit = fit_force(d, f, s, order, friction=friction, tables=tables, loading=loading, spline=spline)
+        if fit.kind != "pwl":
+            break
         try:
             force_table_section(fit.knots_d, fit.knots_f, D_RANGE_MM, ("um", "mN"))
             force_table_section(fit.knots_f, fit.knots_d, F_RANGE_N, ("mN", "um"))
+            break
         except UserError as exc:
-            unexported = "force: the table cannot be exported (%s): the polynomial is kept" % exc
-            fit = fit_force(d, f, s, order, friction=friction, tables=False, loading=loading)
+            what = "spline's table" if fit.kinks_mm is not None else "table"
+            unexported = "force: the %s cannot be exported (%s): a simpler F0 is kept" % (what, exc)
     on_edge = ~fit.left_out
     drive = fit_drive(duty[on_edge], (f - fit.friction_n * s)[on_edge], fit.friction_n)
     return fit, drive, unexported
