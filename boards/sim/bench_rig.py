@@ -31,7 +31,6 @@ import time
 
 POLL_MS = 100
 RIG_FILE = "rig.json"
-APPLIED_FILE = "rig.applied"  # the rig.json text last applied: the host waits for it (VirtualBoard.rig)
 GAUGE_FILE = "gauge.json"
 GAUGE_READS = 16  # a gauge display averages; so does this one
 
@@ -100,14 +99,11 @@ def gauge_reading_n(world):
     return round((fraction - float(g["zero_fraction"])) * float(g["n_per_fraction"]), 2)
 
 
-def _write_atomically(name, text):
-    with open(name + ".tmp", "w") as f:
-        f.write(text)
-    os.rename(name + ".tmp", name)
-
-
 def _write_gauge(world):
-    _write_atomically(GAUGE_FILE, json.dumps({"force_n": gauge_reading_n(world), "t_s": world.time_s}))
+    text = json.dumps({"force_n": gauge_reading_n(world), "t_s": world.time_s})
+    with open(GAUGE_FILE + ".tmp", "w") as f:
+        f.write(text)
+    os.rename(GAUGE_FILE + ".tmp", GAUGE_FILE)
 
 
 def poll(world):
@@ -132,8 +128,7 @@ def poll(world):
         try:
             apply(world, json.loads(text))
             _last_text = text
-            _write_atomically(APPLIED_FILE, text)
-        except (ValueError, KeyError, TypeError, OSError):
+        except (ValueError, KeyError, TypeError):
             pass  # half-written or wrong: try again at the next poll
     if _gauge_on:
         try:

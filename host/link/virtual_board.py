@@ -56,10 +56,6 @@ BOOT_INPUT_HOLD_S = 1.0
 
 RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
 RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it
-# ... on a quiet machine. A loaded one can hold the board's main loop longer (stop 49: a reference
-# read at one end stop before its mount applied, positions 2.15 mm off): the rig writes back the
-# text it applied (bench_rig.APPLIED_FILE), and `rig` waits for that, up to RIG_APPLY_MAX_S.
-RIG_APPLY_MAX_S = 30.0
 
 # Runs first in every micropython process: mount the board's flash as "/"; install as `machine`
 # the simulated actuator's (boards/sim/machine.py, built from board.json) when the board file
@@ -215,29 +211,11 @@ class VirtualBoard:
             state = {}
         state.update(rig)
         tmp = self.root / "rig.json.tmp"
-        text = json.dumps(state)
-        tmp.write_text(text)
+        tmp.write_text(json.dumps(state))
         os.replace(tmp, rig_path)
         if wait:
-            self._wait_applied(text)
+            time.sleep(RIG_APPLY_S)
         return state
-
-    def _wait_applied(self, text):
-        """Until the board's rig has applied `text` (it writes it back to rig.applied), at least
-        RIG_APPLY_S; after RIG_APPLY_MAX_S without that, a UserError."""
-        applied = self.root / "rig.applied"
-        time.sleep(RIG_APPLY_S)
-        deadline = time.monotonic() + RIG_APPLY_MAX_S
-        while True:
-            try:
-                if applied.read_text() == text:
-                    return
-            except OSError:
-                pass
-            if time.monotonic() >= deadline:
-                raise UserError("the virtual board did not apply the rig change within %.0f s (is it running?)"
-                                % RIG_APPLY_MAX_S)
-            time.sleep(0.05)
 
     def set_load(self, load):
         """Hook a load on the block (a parse_load dict); the running firmware's rig applies it

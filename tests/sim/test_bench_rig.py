@@ -60,42 +60,10 @@ os.chdir(%r)
 board = json.loads(open(%r).read())
 w = machine.configure(board, 3)
 machine.idle()
-print(w.reference_on, w.load_kind, json.loads(open('gauge.json').read())["force_n"] > 19.5,
-      open('rig.applied').read() == open('rig.json').read())
+print(w.reference_on, w.load_kind, json.loads(open('gauge.json').read())["force_n"] > 19.5)
 """ % (str(tmp_path), str(REPO / "boards" / "sim.json"))
     out = run_micropython(source).stdout.split()
-    assert out == ["pot1", "gauge", "True", "True"]  # and the text it applied written back for the host
-
-
-def test_the_host_waits_until_the_board_has_applied_a_rig_change(tmp_path, monkeypatch):
-    """A loaded machine can hold the board's main loop (which polls rig.json) for longer than the
-    0.35 s the host used to sleep: the host waits for the rig's own word (rig.applied), and a board
-    that never applies it is an error, not a silently wrong measurement."""
-    import threading
-    import time
-    from types import SimpleNamespace
-
-    import pytest
-
-    from host.errors import UserError
-    from host.link import virtual_board
-
-    board = SimpleNamespace(root=tmp_path)
-    board._wait_applied = lambda text: virtual_board.VirtualBoard._wait_applied(board, text)
-
-    def board_applies_late():
-        time.sleep(1.0)
-        (tmp_path / "rig.applied").write_text((tmp_path / "rig.json").read_text())
-
-    late = threading.Thread(target=board_applies_late)
-    start = time.monotonic()
-    late.start()
-    state = virtual_board.VirtualBoard.rig(board, {"reference": "pot1"})
-    late.join()
-    assert state == {"reference": "pot1"} and time.monotonic() - start >= 1.0
-    monkeypatch.setattr(virtual_board, "RIG_APPLY_MAX_S", 0.3)
-    with pytest.raises(UserError, match="did not apply the rig change"):
-        virtual_board.VirtualBoard.rig(board, {"reference": "pot2"})
+    assert out == ["pot1", "gauge", "True"]
 
 
 def test_waiting_for_a_fresh_gauge_display_keeps_heartbeating(tmp_path):
