@@ -300,9 +300,8 @@ SPLINE_GAIN = 0.9  # the spline replaces a polynomial when its hold-out error is
 def _try_spline(fit, d, f, s, friction, chosen_cv):
     """Replace F0 by a spring spline's table (host/fitting/spring_spline.py) when it predicts
     clearly better than the polynomial chosen so far (cross-validated rms at most SPLINE_GAIN of
-    `chosen_cv`: a polynomial that predicts about as well stays, the paper's model; on a spring
-    with no lift-off in range the spline has no kink, since a kink must soften the spring, and
-    is a cubic whose curvature may change at d = 0), or, when a free-knot
+    `chosen_cv`: on a spring with no lift-off in range a spline with a kink put anywhere matches
+    about as well as a polynomial, and then the paper's polynomial stays), or, when a free-knot
     table was chosen (a kink is there), about as well as the table (within NEAR_BEST, the margin
     by which the simpler of two models is taken): the spline has fewer numbers than a table of
     seven or more knots and puts its kinks where the levels on either side say, where the table

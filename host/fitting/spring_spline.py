@@ -16,10 +16,7 @@ So the spline keeps the kink's physics and leaves the rest generic:
 - on each side, optionally, a slope change max(0, d - r) (or max(0, r - d)) at a kink r found by a
   fine search (KINK_STEP_MM): between levels the slopes on either side of the kink are pinned by
   the levels beyond it, so the least squares places it inside a gap, where a knot search cannot;
-  at least MIN_BEYOND points and MIN_LEVELS_BEYOND levels must lie beyond it, and the stiffness
-  must drop there by at least MIN_SOFTENING (a spring that lifts off takes its share away; a
-  bend the fit puts in the noise or in the curvature of a spring with no lift-off in range need
-  not soften, or barely does).
+  at least MIN_BEYOND points must lie beyond it.
 The block's friction h is one more column, as in the polynomial fit. The firmware evaluates F0 as
 a table (firmware/pwl_fixed.py): `tabulate` samples the spline every TABLE_STEP_MM and at its
 kinks, linear between them (a cubic's curvature of up to 3 N/mm^2 leaves under 1 mN between
@@ -37,12 +34,7 @@ from host.fitting.cross_validation import cv_rms as _cv_rms
 
 KINK_STEP_MM = 0.01  # the kink search's grid
 KINK_NEAR_ZERO_MM = 0.1  # no kink closer to 0 than this: the preload holds at the smallest forces
-MIN_BEYOND = 4  # points beyond a kink, to pin the slope after it
-MIN_LEVELS_BEYOND = 2  # ... on this many force levels: one level's rounds are one deformation, and a slope needs two
-LEVEL_TOL_MM = 0.02  # deformations closer than this are one level (as host/fitting/force.py groups them)
-# A pair's stiffness is both springs' until one lifts off and the other's after: half for a
-# matched pair, and a pair matched no worse than 4:1 loses at least a fifth.
-MIN_SOFTENING = 0.2
+MIN_BEYOND = 4  # points beyond a kink (a level or two), to pin the slope after it
 TABLE_STEP_MM = 0.05
 
 
@@ -86,46 +78,22 @@ def _solve(d, f, s, kink_low, kink_high, split, friction):
     return (sol[:-1], float(sol[-1]), rss) if friction else (sol, 0.0, rss)
 
 
-def softening(coeffs, kink_low, kink_high, split, kink):
-    """How much of the stiffness the spline with these coefficients loses at `kink` (one of its
-    two): 1 - slope beyond / slope inside (toward d = 0); 0 or less where it does not soften."""
-    eps = 1e-4
-    inside, beyond = (kink - eps, kink + eps) if kink > 0 else (kink + eps, kink - eps)
-    at = columns(np.array([inside, kink, beyond]), kink_low, kink_high, split) @ coeffs
-    slope_in, slope_out = (at[1] - at[0]) / (kink - inside), (at[2] - at[1]) / (beyond - kink)
-    return 1.0 - slope_out / slope_in if slope_in > 0 else 0.0
-
-
-def _rss_if_spring(d, f, s, kink_low, kink_high, split, friction):
-    """The residual sum of squares of a fit whose kinks both soften by MIN_SOFTENING, else inf."""
-    coeffs, _, rss = _solve(d, f, s, kink_low, kink_high, split, friction)
-    for kink in (kink_low, kink_high):
-        if kink is not None and softening(coeffs, kink_low, kink_high, split, kink) < MIN_SOFTENING:
-            return float("inf")
-    return rss
-
-
 def _kink_grid(d, sign):
-    """Candidate kinks on one side (None first: no kink), leaving MIN_BEYOND points on
-    MIN_LEVELS_BEYOND levels beyond."""
+    """Candidate kinks on one side (None first: no kink), leaving MIN_BEYOND points beyond."""
     side = np.sort(sign * d[sign * d > 0])
     if len(side) < MIN_BEYOND + 2:
         return [None]
-    starts = side[np.concatenate([[True], np.diff(side) > LEVEL_TOL_MM])]  # each level's nearest point to 0
-    if len(starts) < MIN_LEVELS_BEYOND + 1:
-        return [None]
-    end = min(side[-MIN_BEYOND], starts[-MIN_LEVELS_BEYOND])
-    return [None] + [sign * r for r in np.arange(KINK_NEAR_ZERO_MM, end, KINK_STEP_MM)]
+    return [None] + [sign * r for r in np.arange(KINK_NEAR_ZERO_MM, side[-MIN_BEYOND], KINK_STEP_MM)]
 
 
 def fit_spline(d, f, s, split, friction=True):
     """The SpringSpline of least squares, its kinks found by coordinate search (each side's grid
-    in turn, twice: the two sides barely interact) among those that soften (no kink always does)."""
+    in turn, twice: the two sides barely interact)."""
     low_grid, high_grid = _kink_grid(d, -1), _kink_grid(d, 1)
     low = high = None
     for _ in range(2):
-        high = min(high_grid, key=lambda r: _rss_if_spring(d, f, s, low, r, split, friction))
-        low = min(low_grid, key=lambda r: _rss_if_spring(d, f, s, r, high, split, friction))
+        high = min(high_grid, key=lambda r: _solve(d, f, s, low, r, split, friction)[2])
+        low = min(low_grid, key=lambda r: _solve(d, f, s, r, high, split, friction)[2])
     coeffs, h, _ = _solve(d, f, s, low, high, split, friction)
     return SpringSpline(low, high, split, coeffs, h)
 
