@@ -81,8 +81,10 @@ def identify(d, f, s, loading, duty, order="auto", friction=True):
     spline's to the free-knot table or polynomial the fit would have kept without it, a free-knot
     table to the polynomial it beat (the note says so); the drive is fitted on the points at the
     band's edge (not ForceFit.left_out)."""
-    unexported = None
+    unexported = fit = None
     for tables, spline in ((True, True), (True, False), (False, False)):
+        if unexported and tables and not spline and fit.kinks_mm is None:
+            continue  # the refused table was no spline's: the same free-knot table would come again
         fit = fit_force(d, f, s, order, friction=friction, tables=tables, loading=loading, spline=spline)
         if fit.kind != "pwl":
             break

@@ -257,3 +257,31 @@ def test_a_spline_table_the_firmware_cannot_hold_gives_way_to_the_free_knot_tabl
     fit, _, note = force_identification.identify(d, f, s, loading, 100.0 * np.abs(f))
     assert fit.kind == "pwl" and fit.kinks_mm is None and len(fit.knots_d) <= 20, (fit.kind, fit.kinks_mm)
     assert "spline's table cannot be exported" in note
+
+
+def test_a_refused_free_knot_table_is_not_fitted_again_on_the_way_to_the_polynomial(monkeypatch):
+    """A refused table that was no spline's goes straight to the polynomial: fitting without the
+    spline would only bring the same free-knot table back."""
+    from host.errors import UserError
+    from host.guided import force_identification
+
+    calls = []
+    real_fit = force_identification.fit_force
+
+    def counted(*args, **kw):
+        calls.append((kw.get("tables"), kw.get("spline")))
+        return real_fit(*args, **kw)
+
+    def refuse(*args, **kw):
+        raise UserError("refused (a stand-in)")
+
+    monkeypatch.setattr(force_identification, "fit_force", counted)
+    monkeypatch.setattr(force_identification, "force_table_section", refuse)
+    springs = {"k1_n_per_mm": 17.0, "k2_n_per_mm2": 0.28, "preload_n": 7.0}  # lifts off at 14.2 N: a table
+    d, f, s, _ = _points(springs, top_n=19.0)
+    loading = np.ones(len(d), dtype=bool)
+    first = real_fit(d, f, s, loading=loading)
+    assert first.kind == "pwl" and first.kinks_mm is None, (first.kind, first.kinks_mm)  # a free-knot table
+    fit, _, note = force_identification.identify(d, f, s, loading, 100.0 * np.abs(f))
+    assert fit.kind == "poly" and calls == [(True, True), (False, False)], calls
+    assert "table cannot be exported" in note
