@@ -52,3 +52,14 @@ def mpy():
 def realdata_dir():
     """../shared/realdata: the real measured ADC curves (third-party, not in this repository)."""
     return shared_dir(REALDATA, "the real measured ADC curves")
+
+
+@pytest.fixture(scope="module")
+def model_calibration(tmp_path_factory):
+    """Path of the model calibration of boards/sim.json (testkit.model), written once per module
+    with the real calibration-file code: what the tests that drive the virtual board flash."""
+    from testkit.model import write_model_calibration
+
+    path = tmp_path_factory.mktemp("cal") / "cal.json"
+    write_model_calibration(path, date="2026-03-03")
+    return str(path)

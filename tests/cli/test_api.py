@@ -41,18 +41,11 @@ def test_the_worked_example_runs_as_documented(tmp_path, monkeypatch):
     assert (tmp_path / "api-example" / "move.meta.json").is_file()
 
 
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
-
-
-def test_closing_stops_the_motor_unless_told_not_to_and_an_exception_always_does(calibration):
+def test_closing_stops_the_motor_unless_told_not_to_and_an_exception_always_does(model_calibration):
     from host.link.board_client import BoardClient
     from host.link.virtual_board import VirtualBoard
 
-    with VirtualBoard(calibration=calibration) as vb:
+    with VirtualBoard(calibration=model_calibration) as vb:
         with Board(vb.path) as board:
             board.client.call("mode", "position")
             board.client.call("target", 30000)
@@ -70,8 +63,8 @@ def test_closing_stops_the_motor_unless_told_not_to_and_an_exception_always_does
             assert client.call("status")["mode"] == "idle"
 
 
-def test_records_come_as_an_iterator_and_as_arrays_spanning_board_time(calibration):
-    with Board("sim", calibration=calibration) as board:
+def test_records_come_as_an_iterator_and_as_arrays_spanning_board_time(model_calibration):
+    with Board("sim", calibration=model_calibration) as board:
         records = list(board.stream(seconds=0.2, rate=1000))
         run = board.record(0.3, rate=1000)
     assert records[0]._fields == P.FIELDS

@@ -13,16 +13,8 @@ from host.link.telemetry_log import load
 from host.link.bench_load import parse_load
 from testkit.interpreters import REPO
 
-from testkit.model import write_model_calibration
 
 BOARD = json.loads((REPO / "boards" / "sim.json").read_text())
-
-
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
 
 
 def test_parse_load_takes_the_documented_forms_and_refuses_the_rest():
@@ -69,16 +61,16 @@ def test_help_of_sim_and_force_tells_how_to_hook_a_load(capsys):
         assert "--load none|gauge[@MM]|gauge-low[@MM]|constant:N" in text and "force gauge" in text
 
 
-def test_force_on_port_sim_with_the_gauge_settles_on_the_target(calibration, capsys):
-    code = cli.main(["force", "--port", "sim", "--load", "gauge@40", "--calibration", calibration, "--target", "-5"])
+def test_force_on_port_sim_with_the_gauge_settles_on_the_target(model_calibration, capsys):
+    code = cli.main(["force", "--port", "sim", "--load", "gauge@40", "--calibration", model_calibration, "--target", "-5"])
     out = capsys.readouterr().out
     assert code == 0, out
     assert out.startswith("reached at ")
     assert abs(float(out.split()[2]) + 5.0) <= 0.1  # the firmware's F0(d), mean of the last 0.1 s
 
 
-def test_positive_force_on_port_sim_settles_against_a_gauge_on_the_low_side(calibration, capsys):
-    code = cli.main(["force", "--port", "sim", "--load", "gauge-low@20", "--calibration", calibration, "--target", "5"])
+def test_positive_force_on_port_sim_settles_against_a_gauge_on_the_low_side(model_calibration, capsys):
+    code = cli.main(["force", "--port", "sim", "--load", "gauge-low@20", "--calibration", model_calibration, "--target", "5"])
     out = capsys.readouterr().out
     assert code == 0, out
     assert abs(float(out.split()[2]) - 5.0) <= 0.1
@@ -93,10 +85,10 @@ def test_a_force_beyond_what_the_calibration_held_is_refused_in_one_line(capsys)
     assert "force target -150000 mN is beyond what the force calibration held (-1" in err, err
 
 
-def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, capsys):
+def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(model_calibration, capsys):
     # Nothing to push against: the block runs toward 0 mm until the soft stroke limit holds it
     # (Fig. 8 of the paper), and the force never builds up. Measured and missed: status 1, as host move.
-    code = cli.main(["force", "--port", "sim", "--calibration", calibration, "--target", "-5", "--timeout", "10"])
+    code = cli.main(["force", "--port", "sim", "--calibration", model_calibration, "--target", "-5", "--timeout", "10"])
     captured = capsys.readouterr()
     assert code == 1
     lines = [line for line in captured.out.split("\n") if line.strip()]
@@ -105,20 +97,20 @@ def test_force_at_no_load_says_in_one_line_that_it_did_not_settle(calibration, c
     assert "at the soft stroke limit (0.5 mm): nothing to push against? hook a load (--port sim: --load gauge)" in lines[0]
 
 
-def test_a_move_held_back_by_a_load_says_the_motor_is_at_its_duty_limit(calibration, capsys):
+def test_a_move_held_back_by_a_load_says_the_motor_is_at_its_duty_limit(model_calibration, capsys):
     """The gauge (on the 0 mm side) goes taut once the block passes 40 mm, and it is far stiffer than the motor is strong
     beyond it: the move toward 50 mm stops short with the duty at out_limit, and says so (it used
     to say only "NOT settled")."""
-    code = cli.main(["move", "--port", "sim", "--load", "gauge-low@40", "--calibration", calibration, "--to", "50",
+    code = cli.main(["move", "--port", "sim", "--load", "gauge-low@40", "--calibration", model_calibration, "--to", "50",
                      "--timeout", "3", "--json"])
     out = json.loads(capsys.readouterr().out)
     assert code == 1 and not out["reached"] and out["value"] < 45, out
     assert "duty limit" in out["cause"] and "against" in out["cause"], out["cause"]
 
 
-def test_log_and_plot_from_a_calibrated_board_warn_of_nothing(calibration, tmp_path, capsys):
+def test_log_and_plot_from_a_calibrated_board_warn_of_nothing(model_calibration, tmp_path, capsys):
     out = tmp_path / "run.csv"
-    assert cli.main(["log", "--port", "sim", "--calibration", calibration, "--out", str(out), "--seconds", "0.5", "--rate", "100"]) == 0
+    assert cli.main(["log", "--port", "sim", "--calibration", model_calibration, "--out", str(out), "--seconds", "0.5", "--rate", "100"]) == 0
     assert "warning" not in capsys.readouterr().err
     data = load(out)
     assert len(data["t_us"]) > 20 and abs(data["d2_um"].mean() - 30000) < 1000  # the block boots at 30 mm
@@ -126,7 +118,7 @@ def test_log_and_plot_from_a_calibrated_board_warn_of_nothing(calibration, tmp_p
     assert capsys.readouterr().err == "" and out.with_suffix(".png").stat().st_size > 10000
 
 
-def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys):
+def test_stop_and_reset_leave_the_board_ready_to_move_again(model_calibration, capsys):
     """The reported sequence on one virtual board: move --hold, the host goes quiet and the
     watchdog latches host_timeout, then `host stop` clears it (named), and the next move runs;
     `host reset` names and clears any latched fault; `host status` shows every field (timing,
@@ -135,7 +127,7 @@ def test_stop_and_reset_leave_the_board_ready_to_move_again(calibration, capsys)
 
     from host.link.virtual_board import VirtualBoard
 
-    with VirtualBoard(calibration=calibration) as vb:
+    with VirtualBoard(calibration=model_calibration) as vb:
         port = vb.path
         assert cli.main(["move", "--port", port, "--to", "25", "--hold"]) == 0
         time.sleep(1.5)

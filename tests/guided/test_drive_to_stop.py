@@ -16,16 +16,8 @@ from host.guided import acquire
 from host.link.board_client import BoardClient
 from host.link.virtual_board import VirtualBoard
 
-from testkit.model import write_model_calibration
 
 ASLEEP_S = 2.0  # the host's silence: twice the board's host_timeout_ms (a trip puts every parameter back to boot values)
-
-
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
 
 
 def _falling_silent(monkeypatch, times):
@@ -50,8 +42,8 @@ def _at_rest(client, seconds=0.3):
     return acquire.mean(acquire.collect(client, seconds), "raw2")
 
 
-def test_a_drive_the_host_timeout_stopped_goes_on_to_the_end_stop(calibration, monkeypatch):
-    with VirtualBoard(calibration=calibration) as vb, BoardClient(vb.path) as client:
+def test_a_drive_the_host_timeout_stopped_goes_on_to_the_end_stop(model_calibration, monkeypatch):
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as client:
         limits = client.call("status")["stroke_um"]
         _falling_silent(monkeypatch, 1)
         with acquire.open_stroke(client):
@@ -68,17 +60,17 @@ def test_a_drive_the_host_timeout_stopped_goes_on_to_the_end_stop(calibration, m
         assert client.call("status")["stroke_um"] == limits
 
 
-def test_a_host_that_keeps_falling_silent_is_an_error_not_an_end_stop(calibration, monkeypatch):
-    with VirtualBoard(calibration=calibration) as vb, BoardClient(vb.path) as client:
+def test_a_host_that_keeps_falling_silent_is_an_error_not_an_end_stop(model_calibration, monkeypatch):
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as client:
         _falling_silent(monkeypatch, acquire.DRIVE_TRIES)
         with acquire.open_stroke(client), pytest.raises(UserError, match="fell silent"):
             acquire.drive_to_stop(client, -2500)
 
 
-def test_a_drive_after_the_host_fell_silent_between_two_still_reaches_the_end_stop(calibration):
+def test_a_drive_after_the_host_fell_silent_between_two_still_reaches_the_end_stop(model_calibration):
     """Silent with the motor off, between two drives: the firmware put the opened limits back;
     the next drive opens them again instead of stopping at the soft limit (0.5 mm inside the stop)."""
-    with VirtualBoard(calibration=calibration) as vb, BoardClient(vb.path) as client:
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as client:
         with acquire.open_stroke(client):
             acquire.drive_to_stop(client, 2500)
             time.sleep(ASLEEP_S)

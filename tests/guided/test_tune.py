@@ -12,7 +12,6 @@ from host.fitting.step_response import analyse, best
 from host.link.virtual_board import VirtualBoard
 from host.link.board_client import BoardClient
 
-from testkit.model import write_model_calibration
 
 
 def second_order(zeta, wn, t):
@@ -54,15 +53,8 @@ def test_best_prefers_settled_then_fast_and_refuses_big_overshoot():
     assert best([("wild", wild)]) is None
 
 
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
-
-
-def test_tune_position_on_the_virtual_board(calibration, tmp_path, capsys):
-    with VirtualBoard(calibration=calibration) as vb:
+def test_tune_position_on_the_virtual_board(model_calibration, tmp_path, capsys):
+    with VirtualBoard(calibration=model_calibration) as vb:
         port = vb.path
         png = tmp_path / "tune.png"
         code = cli.main(["tune", "position", "--port", port, "--png", str(png), "--json",
@@ -83,21 +75,21 @@ def test_tune_position_on_the_virtual_board(calibration, tmp_path, capsys):
 OSCILLATING = {"kp_pos": 32767, "ki_pos": 4096}  # found on the virtual board: see the test above
 
 
-def test_tune_force_against_the_gauge_on_the_virtual_board(calibration, tmp_path, capsys):
+def test_tune_force_against_the_gauge_on_the_virtual_board(model_calibration, tmp_path, capsys):
     """Force mode needs something to push against: the virtual rig's force gauge (--load gauge).
     The default gains settle on a 2 N step, and the figures come in N."""
     png = tmp_path / "force.png"
-    code = cli.main(["tune", "force", "--port", "sim", "--calibration", calibration, "--load", "gauge",
+    code = cli.main(["tune", "force", "--port", "sim", "--calibration", model_calibration, "--load", "gauge",
                      "--png", str(png)])
     out = capsys.readouterr().out
     assert code == 0, out
     assert "force loop, step -1 -> -3 N" in out and "settles" in out and png.stat().st_size > 10000
 
 
-def test_tune_force_with_nothing_to_push_against_says_so(calibration, tmp_path, capsys):
+def test_tune_force_with_nothing_to_push_against_says_so(model_calibration, tmp_path, capsys):
     """No load: force mode drives the block to a stroke end and nothing settles. The advice is
     host force's ("hook a load"), not "try smaller gains", which would send a person tuning."""
-    code = cli.main(["tune", "force", "--port", "sim", "--calibration", calibration, "--duration", "0.5",
+    code = cli.main(["tune", "force", "--port", "sim", "--calibration", model_calibration, "--duration", "0.5",
                      "--png", str(tmp_path / "force.png")])
     out = capsys.readouterr().out
     assert code == 1, out

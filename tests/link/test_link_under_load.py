@@ -21,16 +21,8 @@ from host.link.connect import Connection
 from host.link.flashing import flash
 from host.link.virtual_board import VirtualBoard
 
-from testkit.model import write_model_calibration
 
 BURNERS = 3  # with the board, the client and the suite's other worker: a load of 5-6 on 2 cores
-
-
-@pytest.fixture(scope="module")
-def calibration_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-11-24")
-    return str(path)
 
 
 @pytest.fixture
@@ -44,11 +36,11 @@ def busy_machine():
             p.wait()
 
 
-def test_flash_commands_moves_and_streams_survive_a_busy_machine(busy_machine, calibration_file):
+def test_flash_commands_moves_and_streams_survive_a_busy_machine(busy_machine, model_calibration):
     with VirtualBoard() as vb:
-        status = flash(vb.path, "sim", calibration_file, progress=lambda s: None)
+        status = flash(vb.path, "sim", model_calibration, progress=lambda s: None)
         assert status["calibration_crc"] is not None
-    with Connection("sim", calibration=calibration_file) as connection:
+    with Connection("sim", calibration=model_calibration) as connection:
         board = connection.client
         for _ in range(20):
             assert board.call("status")["faults"] == []
@@ -72,8 +64,8 @@ def _interpreter(vb):
     return vb._child.pid
 
 
-def test_a_frozen_board_that_comes_back_is_slow_not_gone(calibration_file):
-    with VirtualBoard(calibration=calibration_file) as vb:
+def test_a_frozen_board_that_comes_back_is_slow_not_gone(model_calibration):
+    with VirtualBoard(calibration=model_calibration) as vb:
         client = BoardClient(vb.path)
         try:
             pid = _interpreter(vb)
@@ -86,8 +78,8 @@ def test_a_frozen_board_that_comes_back_is_slow_not_gone(calibration_file):
             client.close()
 
 
-def test_a_board_frozen_for_good_is_said_to_have_stopped_answering(calibration_file):
-    with VirtualBoard(calibration=calibration_file) as vb:
+def test_a_board_frozen_for_good_is_said_to_have_stopped_answering(model_calibration):
+    with VirtualBoard(calibration=model_calibration) as vb:
         client = BoardClient(vb.path, patience=2.0)
         pid = _interpreter(vb)
         try:

@@ -20,14 +20,6 @@ from host.api import Board
 from host.link.live_view import REFRESH_HZ, logged, open_window
 from host.link.telemetry_log import load
 
-from testkit.model import write_model_calibration
-
-
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
 
 
 @pytest.fixture
@@ -36,9 +28,9 @@ def headless(monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
 
 
-def test_the_live_view_redraws_on_its_board_time_schedule_and_no_frame_is_lost(calibration, tmp_path):
+def test_the_live_view_redraws_on_its_board_time_schedule_and_no_frame_is_lost(model_calibration, tmp_path):
     out = tmp_path / "live.csv"
-    with Board("sim", calibration=calibration) as board:  # "agg": the drawing a window runs, on the file-only canvas
+    with Board("sim", calibration=model_calibration) as board:  # "agg": the drawing a window runs, on the file-only canvas
         def work(recording):  # a move, then two seconds of the block held there
             moved = board.move(40.0, hold=True)
             recording.pump(2.0)
@@ -86,11 +78,11 @@ def x_display(monkeypatch):
         server.wait(10)
 
 
-def test_a_real_window_is_drawn_live_and_no_frame_is_lost(calibration, tmp_path, x_display):
+def test_a_real_window_is_drawn_live_and_no_frame_is_lost(model_calibration, tmp_path, x_display):
     """The same run in a window on an X screen: the window opened (not the headless path), was
     redrawn through the run, and every frame still reached the CSV."""
     out = tmp_path / "live.csv"
-    with Board("sim", calibration=calibration) as board:
+    with Board("sim", calibration=model_calibration) as board:
         def work(recording):
             moved = board.move(20.0, hold=True)
             recording.pump(1.0)
@@ -109,7 +101,7 @@ def test_a_real_window_is_drawn_live_and_no_frame_is_lost(calibration, tmp_path,
     assert abs(view["newest"]["D2 block"] - 20.0) < 0.3, view["newest"]
 
 
-def test_a_kept_window_outlives_the_run_and_the_board_until_released(calibration, tmp_path, x_display, monkeypatch,
+def test_a_kept_window_outlives_the_run_and_the_board_until_released(model_calibration, tmp_path, x_display, monkeypatch,
                                                                      capsys):
     """--keep: the run ends, its counts come back and the board is closed, while the drawing
     process keeps its window open; release() (a test, or Ctrl-C during wait()) ends it by itself
@@ -120,7 +112,7 @@ def test_a_kept_window_outlives_the_run_and_the_board_until_released(calibration
     from host import terminal
 
     runs = []
-    with Board("sim", calibration=calibration) as board:
+    with Board("sim", calibration=model_calibration) as board:
         for name in ("first.csv", "second.csv"):
             runs.append(logged(board, tmp_path / name, 1000, lambda recording: recording.pump(0.5), canvas="window",
                                keep=True))
@@ -223,10 +215,10 @@ def test_no_window_without_a_display(headless):
     assert open_window("x") is None
 
 
-def test_move_with_log_and_live_headless_writes_csv_meta_and_png_over_one_connection(calibration, tmp_path, capsys,
+def test_move_with_log_and_live_headless_writes_csv_meta_and_png_over_one_connection(model_calibration, tmp_path, capsys,
                                                                                        headless):
     out = tmp_path / "move.csv"
-    assert cli.main(["move", "--port", "sim", "--calibration", calibration, "--to", "40", "--log", str(out),
+    assert cli.main(["move", "--port", "sim", "--calibration", model_calibration, "--to", "40", "--log", str(out),
                      "--live"]) == 0
     printed = capsys.readouterr()
     assert printed.out.startswith(("reached at 39.", "reached at 40."))
@@ -242,9 +234,9 @@ def test_move_with_log_and_live_headless_writes_csv_meta_and_png_over_one_connec
     assert out.with_suffix(".png").stat().st_size > 20000
 
 
-def test_force_with_log_and_json(calibration, tmp_path, capsys):
+def test_force_with_log_and_json(model_calibration, tmp_path, capsys):
     out = tmp_path / "force.csv"
-    assert cli.main(["force", "--port", "sim", "--calibration", calibration, "--load", "gauge@40", "--target", "-3",
+    assert cli.main(["force", "--port", "sim", "--calibration", model_calibration, "--load", "gauge@40", "--target", "-3",
                      "--log", str(out), "--rate", "500", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["reached"] and abs(result["value"] + 3) <= 0.1 and result["target"] == -3
@@ -284,7 +276,7 @@ def test_keep_without_a_display_writes_the_png_and_keeps_nothing(tmp_path, capsy
     assert "stays open" not in printed.err
 
 
-def test_move_json(calibration, capsys):
-    assert cli.main(["move", "--port", "sim", "--calibration", calibration, "--to", "35", "--json"]) == 0
+def test_move_json(model_calibration, capsys):
+    assert cli.main(["move", "--port", "sim", "--calibration", model_calibration, "--to", "35", "--json"]) == 0
     result = json.loads(capsys.readouterr().out)
     assert result["reached"] and abs(result["value"] - 35) <= 0.2 and result["faults"] == []

@@ -17,7 +17,6 @@ from host.link.board_client import BoardClient
 from host.link.virtual_board import VirtualBoard
 from testkit.interpreters import run_micropython
 
-from testkit.model import write_model_calibration
 
 DEFAULTS = [row[1] for row in PARAMS]
 
@@ -115,21 +114,14 @@ def test_the_unix_port_reads_what_cpython_wrote_and_the_other_way(tmp_path):
 
 # --- host params on the virtual board ---------------------------------------------------------
 
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
-
-
 def params_json(capsys, port):
     capsys.readouterr()
     assert cli.main(["params", "--port", port, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
 
 
-def test_list_read_set_and_refuse(calibration, capsys):
-    with VirtualBoard(calibration=calibration) as vb:
+def test_list_read_set_and_refuse(model_calibration, capsys):
+    with VirtualBoard(calibration=model_calibration) as vb:
         port = vb.path
         table = params_json(capsys, port)
         assert [(p["name"], p["default"], p["min"], p["max"], p["unit"]) for p in table["params"]] == [tuple(r) for r in PARAMS]
@@ -154,8 +146,8 @@ def test_list_read_set_and_refuse(calibration, capsys):
         assert all(p["value"] == p["default"] for p in params_json(capsys, port)["params"])
 
 
-def test_saved_values_survive_a_restart_and_are_what_the_watchdog_restores(calibration, capsys):
-    with VirtualBoard(calibration=calibration) as vb:
+def test_saved_values_survive_a_restart_and_are_what_the_watchdog_restores(model_calibration, capsys):
+    with VirtualBoard(calibration=model_calibration) as vb:
         port = vb.path
         assert cli.main(["params", "--port", port, "kp_pos=900", "--save"]) == 0
         out = capsys.readouterr().out
@@ -185,8 +177,8 @@ def test_saved_values_survive_a_restart_and_are_what_the_watchdog_restores(calib
             board.call("stop")
 
 
-def test_a_damaged_saved_file_is_named_and_the_defaults_stand(calibration, capsys):
-    with VirtualBoard(calibration=calibration) as vb:
+def test_a_damaged_saved_file_is_named_and_the_defaults_stand(model_calibration, capsys):
+    with VirtualBoard(calibration=model_calibration) as vb:
         port = vb.path
         assert cli.main(["params", "--port", port, "slew=300", "--save"]) == 0
         path = vb.root / "params.txt"

@@ -9,29 +9,20 @@ import signal
 import subprocess
 import time
 
-import pytest
 
 from host.link.board_client import BoardClient
 from host.link.virtual_board import VirtualBoard
 
 from testkit import processes as host_processes
-from testkit.model import write_model_calibration
 
 WRAP = 1 << 30  # the status field `steps` counts modulo 2**30
 
 
-@pytest.fixture(scope="module")
-def calibration(tmp_path_factory):
-    path = tmp_path_factory.mktemp("cal") / "cal.json"
-    write_model_calibration(path, date="2026-03-03")
-    return str(path)
-
-
-def test_temporary_values_come_back_after_a_timeout_of_board_time_without_the_host(calibration):
+def test_temporary_values_come_back_after_a_timeout_of_board_time_without_the_host(model_calibration):
     """Judged on the board's own step count, so load cannot make it pass or fail: every look at
     the board is itself a word from the host, so between two looks either fewer steps than the
     timeout passed, or the temporary values must be back."""
-    with VirtualBoard(calibration=calibration) as vb, BoardClient(vb.path) as board:
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as board:
         boot = board.call("status")["stroke_um"]
         timeout_steps = board.call("get", "host_timeout_ms")  # at the sim board's 1 kHz
         board.call("set", "stroke_min_um", -65535, "temp")
@@ -66,11 +57,11 @@ def _read_until(proc, text, timeout_s=120):
     return seen.decode(errors="replace")
 
 
-def test_a_calibration_killed_while_a_person_reads_the_gauge_leaves_the_stroke_limits_closed(calibration, tmp_path):
+def test_a_calibration_killed_while_a_person_reads_the_gauge_leaves_the_stroke_limits_closed(model_calibration, tmp_path):
     """`host calibrate pots --reference manual` opens the stroke limits only around each
     motion: killed (SIGKILL, or a closed terminal) at a dial-gauge prompt, the board's limits
     are already the ones in force before, and nothing temporary is left."""
-    with VirtualBoard(calibration=calibration) as vb:
+    with VirtualBoard(calibration=model_calibration) as vb:
         with BoardClient(vb.path) as board:
             before = board.call("status")["stroke_um"]
         proc = host_processes.start("calibrate", "pots", "--port", vb.path, "--reference", "manual",
@@ -94,7 +85,7 @@ def test_a_calibration_killed_while_a_person_reads_the_gauge_leaves_the_stroke_l
         assert st["mode"] == "idle" and st["params_changed"] == [], st
 
 
-def test_a_sweep_and_a_tuning_run_change_the_board_only_temporarily(calibration):
+def test_a_sweep_and_a_tuning_run_change_the_board_only_temporarily(model_calibration):
     """What the board holds while a sweep's stroke limits are open and while a tuning trial runs:
     temporary values, the ones the firmware restores by itself; after each, nothing."""
     from host.guided import acquire
@@ -115,7 +106,7 @@ def test_a_sweep_and_a_tuning_run_change_the_board_only_temporarily(calibration)
         def __getattr__(self, name):
             return getattr(self.board, name)
 
-    with VirtualBoard(calibration=calibration) as vb, BoardClient(vb.path) as board:
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as board:
         before = board.call("status")["stroke_um"]
         with acquire.open_stroke(board):
             st = board.call("status")
