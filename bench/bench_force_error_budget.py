@@ -1,10 +1,11 @@
 """Where the offline force steps' errors come from, and what they imply for a whole run.
 
     .venv/bin/python bench/bench_force_error_budget.py --runs DIR [--anchors UM,UM] [--loop-hz HZ]
-        [--oversample N] [--oversample-times K] [--rows] SEED...
+        [--oversample N] [--oversample-times K] [--targets MN,MN,...] [--rows] SEED...
 
 The same steps as bench/bench_force_steps_offline.py (5, 10, 15, 10, 5 N a side after a 0.5 N
-preload, settled 1.5 s, measured 0.5 s; the real firmware App on the simulated actuator on
+preload, or --targets' magnitudes, e.g. the held-out steps' 2-7 N; settled 1.5 s, measured 0.5 s;
+the real firmware App on the simulated actuator on
 CPython, each board's identified calibration from the robustness run in DIR, the gauge hooked
 at --anchors um from each board's own anchor), but each hold's error is split with the
 simulator's true forces, which no bench has (a diagnostic, judged against the true load):
@@ -36,7 +37,15 @@ import offline_force_rig as offline  # noqa: E402  (the same actuators, calibrat
 
 HELD_OUT_STEPS = 12  # host/experiments/held_out.py: LOADING + UNLOADING a side, two sides
 PARTS = ("estimate - load", "calibration", "friction held", "friction term")
-PHASES = ("5 N loading", "10 N loading", "15 N loading", "10 N unloading", "5 N unloading")
+
+
+def phases(targets):
+    """A name for each step of the sequence `targets` (mN magnitudes): "5 N loading", ..."""
+    out, peak = [], 0
+    for t in targets:
+        out.append("%g N %s" % (t / 1000.0, "loading" if t > peak else "unloading"))
+        peak = max(peak, t)
+    return tuple(out)
 
 
 def holds(runs, seed, anchor_offset, tmp):
@@ -55,7 +64,7 @@ def holds(runs, seed, anchor_offset, tmp):
         app.set_mode("force")
         app.set_target(sign * offline.PRELOAD)
         _run(app, 500)
-        for target in offline.TARGETS:
+        for target in offline.RUN.targets:
             app.set_target(sign * target)
             est = f0 = spring = load = 0.0
             for k in range(offline.RUN.settle + offline.RUN.hold):
@@ -86,6 +95,7 @@ def main():
     ap.add_argument("--loop-hz", type=int, metavar="HZ", help="every board's loop rate (settle and hold keep their seconds)")
     ap.add_argument("--oversample", type=int, metavar="N", help="every board read N times a step (default: as its run was)")
     ap.add_argument("--oversample-times", type=int, metavar="K", help="the run's own reads per step times K (at most 64)")
+    ap.add_argument("--targets", metavar="MN,MN,...", help="the step sequence's magnitudes in mN (default 5000,10000,15000,10000,5000)")
     ap.add_argument("--rows", action="store_true", help="print every hold's split as well")
     a = ap.parse_args()
     if not os.path.isdir(a.runs):
@@ -96,6 +106,11 @@ def main():
         sys.exit("--anchors wants um values separated by commas, e.g. -1000,0,1000")
     run = offline.RUN
     run.at_gauge = True
+    if a.targets:
+        try:
+            run.targets = tuple(int(v) for v in a.targets.split(","))
+        except ValueError:
+            sys.exit("--targets wants mN magnitudes separated by commas, e.g. 2500,4000,6500,4500,3000")
     run.oversample = a.oversample
     run.oversample_times = a.oversample_times
     if a.loop_hz:
@@ -113,14 +128,15 @@ def main():
                               + ", ".join("%s %+.0f" % (n, v) for n, v in zip(PARTS, parts)), flush=True)
     if not rows:
         sys.exit("no actuator with a calibration under %s" % a.runs)
-    print("%d holds (%d actuators x %d anchors x 2 sides x 5 steps), loop %s Hz%s, mN rms (mean) of each part:"
-          % (len(rows), len(a.seeds), len(anchors), a.loop_hz or "the boards'",
+    print("%d holds (%d actuators x %d anchors x 2 sides x %d steps), loop %s Hz%s, mN rms (mean) of each part:"
+          % (len(rows), len(a.seeds), len(anchors), len(run.targets), a.loop_hz or "the boards'",
              (", %d reads a step" % a.oversample if a.oversample else "")
              + (", the run's reads x%d" % a.oversample_times if a.oversample_times else "")))
     print("| step | " + " | ".join(PARTS) + " | beyond 2 % |")
     print("| --- " * (len(PARTS) + 2) + "|")
-    for k, phase in enumerate(PHASES + ("all",)):
-        sel = [r for i, r in enumerate(rows) if phase == "all" or i % 5 == k]
+    steps = len(run.targets)
+    for k, phase in enumerate(phases(run.targets) + ("all",)):
+        sel = [r for i, r in enumerate(rows) if phase == "all" or i % steps == k]
         cells = ["%.0f (%+.0f)" % (rms([r[4][j] for r in sel]), sum(r[4][j] for r in sel) / len(sel)) for j in range(len(PARTS))]
         miss = sum(abs(r[3] / r[2] - 1) > 0.02 for r in sel)
         print("| %s | %s | %d of %d |" % (phase, " | ".join(cells), miss, len(sel)))
