@@ -54,6 +54,7 @@ _FRIENDLY_PROMPT = b">>> "
 # must still get its Ctrl-C).
 BOOT_INPUT_HOLD_S = 1.0
 
+RAW_BOOT_RETRIES = 3  # a raw-REPL boot that keeps dying before its prompt is given up (main.py boots)
 RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
 RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it
 
@@ -155,6 +156,8 @@ class VirtualBoard:
         self._tail = b""
         self._raw_mode = False
         self._swallow = None  # while booting into the raw REPL: output held back until ">>> "
+        self._raw_boot_pending = False  # a raw-REPL boot whose raw REPL has not come up yet
+        self._raw_boot_failures = 0  # raw-REPL boots in a row that died before their raw REPL
         self._line_endings = BoardLineEndings()
         self._held_input = b""
         self._hold_input_until = None  # while a new process boots: monotonic time to give up waiting
@@ -265,6 +268,7 @@ class VirtualBoard:
         self._tail = b""
         self._raw_mode = False
         self._swallow = None if run_main else b""
+        self._raw_boot_pending = not run_main
         self._line_endings = BoardLineEndings()  # a frame the last process left unfinished is over
         self._hold_input_until = time.monotonic() + BOOT_INPUT_HOLD_S
         self.boots += 1
@@ -320,8 +324,14 @@ class VirtualBoard:
             self._swallow += data
             if _FRIENDLY_PROMPT in self._swallow:
                 self._swallow = None
-                os.write(self._inner, b"\x01")
+                try:
+                    os.write(self._inner, b"\x01")
+                except OSError:
+                    pass  # it died meanwhile: the EOF that follows reboots it (raw again, see _reboot)
             return
+        if self._raw_boot_pending and self._raw_mode:
+            self._raw_boot_pending = False  # its raw REPL is up: what mpremote waits for
+            self._raw_boot_failures = 0
         self._to_client(self._line_endings.feed(data))
 
     def _track_repl_mode(self):
@@ -404,6 +414,13 @@ class VirtualBoard:
                 pass
         hard = code == RESET_EXIT
         raw = self._raw_mode and not hard
+        if self._raw_boot_pending and not hard and self._raw_boot_failures < RAW_BOOT_RETRIES:
+            # A boot into the raw REPL (after a soft reset there, which mpremote waits out for
+            # the raw REPL's banner) died before its raw REPL came up: boot it the same way again.
+            # Booting main.py instead would leave mpremote waiting for a banner that never comes
+            # (it reads a pty without a timeout): the 120 s "no answer" of a reflash.
+            self._raw_boot_failures += 1
+            raw = True
         try:
             poller.unregister(self._inner)
         except (KeyError, ValueError):

@@ -138,3 +138,31 @@ def test_rshell_lists_and_reads_the_board_files_and_the_firmware_comes_back(vboa
     assert board_json.strip() == (vboard.root / "board.json").read_text().strip()
     with BoardClient(vboard.path) as board:  # at the REPL: soft reset, main.py starts the firmware
         assert board.status_info["version"] == VERSION
+
+
+def test_a_raw_repl_boot_that_dies_before_its_prompt_boots_into_the_raw_repl_again(monkeypatch):
+    """mpremote soft-resets in the raw REPL, then reads the pty (without a timeout) until the raw
+    REPL's banner. If the process booting for it dies before its prompt (killed here right after
+    it starts; a Ctrl-C that reached it during its start does the same), the relay must boot the
+    raw REPL again, not main.py, whose firmware never prints that banner: mpremote would wait
+    for good (a reflash's 120 s "no answer")."""
+    import signal
+
+    original = VirtualBoard._spawn
+    killed = []
+
+    def spawn_and_kill_the_first_raw_boot(self, run_main):
+        original(self, run_main)
+        if not run_main and not killed:
+            killed.append(self._child.pid)
+            self._child.send_signal(signal.SIGKILL)
+
+    monkeypatch.setattr(VirtualBoard, "_spawn", spawn_and_kill_the_first_raw_boot)
+    with VirtualBoard() as board:
+        try:
+            out = subprocess.run([str(BIN / "mpremote"), "connect", board.path, "exec", "print('ran', 6 * 7)"],
+                                 capture_output=True, text=True, timeout=DEADLINE_S)
+        except subprocess.TimeoutExpired:
+            pytest.fail("mpremote got no answer in %d s after a raw-REPL boot died" % DEADLINE_S)
+    assert killed, "no raw-REPL boot happened"
+    assert out.returncode == 0 and "ran 42" in out.stdout, out
