@@ -139,7 +139,11 @@ def mpremote(port, *commands, timeout=120):
     try:
         proc = subprocess.run(args, capture_output=True, text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
-        raise BoardSilent("mpremote on %s got no answer in %d s: the board stopped answering" % (port, timeout)) from None
+        from host.link.virtual_board import recent_exits
+
+        seen = recent_exits(port)  # a virtual board says what its processes did meanwhile
+        raise BoardSilent("mpremote on %s got no answer in %d s: the board stopped answering%s"
+                          % (port, timeout, " (virtual board: %s)" % seen if seen else "")) from None
     if proc.returncode:
         msg = (proc.stderr.strip() or proc.stdout.strip()).splitlines()[-1:] or ["exit %d" % proc.returncode]
         raise UserError("mpremote on %s failed: %s" % (port, msg[0]))

@@ -14,10 +14,13 @@ the simulated world at boot and within ~100 ms of a change (`set_load`).
 Where a board soft-resets, the unix port exits; the relay then prints "MPY: soft reboot" and starts
 micropython again: into the raw REPL when the reset came from the raw REPL (as a board does, which
 is what mpremote expects), else booting main.py. Output nobody reads is dropped, as a USB CDC port
-with no host attached does, so the firmware never blocks on a missing client. Text reaches the
+with no host attached does, so the firmware never blocks on a missing client; input the process
+has not read yet waits in the relay (up to INPUT_BUFFER bytes, then the client's writes wait, as
+USB's flow control makes them), so the relay never blocks on either side. Text reaches the
 client with a board's \r\n line endings, frames byte for byte (host/link/board_line_endings.py).
 """
 
+import collections
 import json
 import os
 import select
@@ -54,6 +57,8 @@ _FRIENDLY_PROMPT = b">>> "
 # must still get its Ctrl-C).
 BOOT_INPUT_HOLD_S = 1.0
 
+INPUT_BUFFER = 1 << 16  # client bytes the relay holds for a process that is not reading (then it stops taking more)
+EXITS_KEPT = 8  # the process exits a BoardSilent error can name (recent_exits)
 RAW_BOOT_RETRIES = 3  # a raw-REPL boot that keeps dying before its prompt is given up (main.py boots)
 RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
 RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it
@@ -159,8 +164,11 @@ class VirtualBoard:
         self._raw_boot_pending = False  # a raw-REPL boot whose raw REPL has not come up yet
         self._raw_boot_failures = 0  # raw-REPL boots in a row that died before their raw REPL
         self._line_endings = BoardLineEndings()
-        self._held_input = b""
+        self._held_input = b""  # the client's bytes the process has not taken yet
         self._hold_input_until = None  # while a new process boots: monotonic time to give up waiting
+        self._boot_started = 0.0  # monotonic time of the running process's start
+        self._boot_ready = False  # it printed a prompt or the firmware's hello
+        self.exits = collections.deque(maxlen=EXITS_KEPT)  # one line per process exit, and the relay's end
 
     # -- lifecycle ---------------------------------------------------------------------
     def start(self):
@@ -179,9 +187,11 @@ class VirtualBoard:
         self._spawn(run_main=True)
         self._thread = threading.Thread(target=self._relay, name="virtual-board", daemon=True)
         self._thread.start()
+        _RUNNING[self.path] = self
         return self.path
 
     def stop(self):
+        _RUNNING.pop(self.path, None)
         self._stop.set()
         if self._thread:
             self._thread.join(timeout=5)
@@ -264,6 +274,7 @@ class VirtualBoard:
             preexec_fn=controlling_tty, close_fds=True,
         )
         os.close(child_side)
+        os.set_blocking(inner, False)  # the relay never waits on the process (_to_child)
         self._inner = inner
         self._tail = b""
         self._raw_mode = False
@@ -271,6 +282,8 @@ class VirtualBoard:
         self._raw_boot_pending = not run_main
         self._line_endings = BoardLineEndings()  # a frame the last process left unfinished is over
         self._hold_input_until = time.monotonic() + BOOT_INPUT_HOLD_S
+        self._boot_started = time.monotonic()
+        self._boot_ready = False
         self.boots += 1
 
     def _kill_child(self):
@@ -326,6 +339,8 @@ class VirtualBoard:
                 self._swallow = None
                 try:
                     os.write(self._inner, b"\x01")
+                except BlockingIOError:
+                    self._held_input = b"\x01" + self._held_input  # its input is full: first when it reads
                 except OSError:
                     pass  # it died meanwhile: the EOF that follows reboots it (raw again, see _reboot)
             return
@@ -343,47 +358,68 @@ class VirtualBoard:
             self._raw_mode = False
 
     def _relay(self):
+        try:
+            self._relay_loop()
+        except BaseException as exc:  # the board falls silent: say why where its silence is reported
+            self.exits.append("the relay stopped: %s: %s" % (type(exc).__name__, exc))
+            self._kill_child()
+            raise
+
+    def _relay_loop(self):
         poller = select.poll()
-        poller.register(self._master, select.POLLIN)
-        registered_inner = None
+        masks = {}  # fd -> the events it is registered for
+
+        def want(fd, mask):
+            if masks.get(fd) != mask:
+                (poller.modify if fd in masks else poller.register)(fd, mask)
+                masks[fd] = mask
+
         while not self._stop.is_set():
-            if registered_inner != self._inner:
-                if registered_inner is not None:
-                    try:
-                        poller.unregister(registered_inner)
-                    except (KeyError, ValueError):
-                        pass
-                poller.register(self._inner, select.POLLIN)
-                registered_inner = self._inner
+            for fd in [fd for fd in masks if fd not in (self._master, self._inner)]:
+                try:
+                    poller.unregister(fd)  # a process that exited: its pty is closed
+                except (KeyError, ValueError):
+                    pass
+                del masks[fd]
+            # Take the client's bytes only while few wait for the process (else its writes wait,
+            # as USB's flow control makes them); wait for room in the process's input when some do.
+            want(self._master, select.POLLIN if len(self._held_input) < INPUT_BUFFER else 0)
+            feeding = self._held_input and self._hold_input_until is None
+            want(self._inner, select.POLLIN | (select.POLLOUT if feeding else 0))
             events = poller.poll(100 if self._hold_input_until is None else 10)
-            if self._held_input and (self._hold_input_until is None or time.monotonic() >= self._hold_input_until):
+            if self._held_input and self._hold_input_until is not None and time.monotonic() >= self._hold_input_until:
                 self._hold_input_until = None
                 self._to_child(b"")
             if not events:
                 text = self._line_endings.flush()
                 if text:
                     self._to_client(text)
-            for fd, _ in events:
-                if fd == self._master:
+            for fd, event in events:
+                if fd == self._master and event & select.POLLIN:
                     try:
                         data = os.read(self._master, 4096)
                     except (BlockingIOError, OSError):
                         continue
                     self._client_absent = False
                     self._to_child(data)
-                elif fd == self._inner:
+                elif fd == self._inner and event & (select.POLLIN | select.POLLHUP | select.POLLERR):
                     try:
                         data = os.read(self._inner, 65536)
+                    except BlockingIOError:
+                        continue
                     except OSError:
                         data = b""
                     if data:
                         self._from_child(data)
-                        if self._hold_input_until is not None and self._ready_for_input(data):
-                            self._hold_input_until = None
-                            self._to_child(b"")
+                        if self._ready_for_input(data):
+                            self._boot_ready = True
+                            if self._hold_input_until is not None:
+                                self._hold_input_until = None
+                                self._to_child(b"")
                     else:
-                        self._reboot(poller)
-                        registered_inner = None
+                        self._reboot()
+                elif fd == self._inner and event & select.POLLOUT:
+                    self._to_child(b"")
 
     def _ready_for_input(self, data):
         """The new process has booted: the firmware sent a frame (its hello), or a REPL prompt is
@@ -394,17 +430,22 @@ class VirtualBoard:
         return SYNC in data or self._tail.endswith(_FRIENDLY_PROMPT) or self._tail.endswith(_RAW_BANNER + b"\r\n>")
 
     def _to_child(self, data):
-        if self._hold_input_until is not None:
-            self._held_input += data
+        """Queue the client's `data` for the process and write what its input takes now (none
+        while it boots); the rest waits for the relay's next POLLOUT. A blocking write here could
+        hang for good: the process, not reading, may itself be blocked writing its output to
+        this thread."""
+        self._held_input += data
+        if self._hold_input_until is not None or not self._held_input or self._inner is None:
             return
-        data, self._held_input = self._held_input + data, b""
-        if data and self._inner is not None:
-            try:
-                os.write(self._inner, data)
-            except OSError:
-                pass
+        try:
+            taken = os.write(self._inner, self._held_input)
+        except BlockingIOError:
+            taken = 0
+        except OSError:
+            taken = len(self._held_input)  # it died: its EOF reboots it; a reset loses its input too
+        self._held_input = self._held_input[taken:]
 
-    def _reboot(self, poller):
+    def _reboot(self):
         """micropython exited (a soft reset): restart it as a board restarts."""
         code = None
         if self._child is not None:
@@ -412,6 +453,9 @@ class VirtualBoard:
                 code = self._child.wait(timeout=2)
             except subprocess.TimeoutExpired:
                 pass
+        self.exits.append("boot %d (%s) exited with %s after %.1f s%s" % (
+            self.boots, "raw REPL" if self._raw_boot_pending or self._swallow is not None else "main.py",
+            code, time.monotonic() - self._boot_started, "" if self._boot_ready else ", before its prompt"))
         hard = code == RESET_EXIT
         raw = self._raw_mode and not hard
         if self._raw_boot_pending and not hard and self._raw_boot_failures < RAW_BOOT_RETRIES:
@@ -421,13 +465,20 @@ class VirtualBoard:
             # (it reads a pty without a timeout): the 120 s "no answer" of a reflash.
             self._raw_boot_failures += 1
             raw = True
-        try:
-            poller.unregister(self._inner)
-        except (KeyError, ValueError):
-            pass
         self._kill_child()
         if self._stop.is_set():
             return
         self._to_client(b"MPY: soft reboot\r\n")
         time.sleep(0.01)
         self._spawn(run_main=not raw)
+
+
+_RUNNING = {}  # serial path -> the VirtualBoard started in this process on it
+
+
+def recent_exits(path):
+    """What the virtual board on serial `path` (started in this process) last saw end: its
+    processes' exits and, if it stopped, the relay's; '' for any other port. For an error that
+    says a board fell silent."""
+    board = _RUNNING.get(path)
+    return "; ".join(board.exits) if board is not None else ""

@@ -4,6 +4,8 @@ and its raw-paste mode work (Thonny and mpremote send code that way), and rshell
 REPL drive it. The real unix port, firmware, pty, pyserial, mpremote and rshell."""
 
 import os
+import re
+import signal
 import subprocess
 import sys
 import time
@@ -146,8 +148,6 @@ def test_a_raw_repl_boot_that_dies_before_its_prompt_boots_into_the_raw_repl_aga
     it starts; a Ctrl-C that reached it during its start does the same), the relay must boot the
     raw REPL again, not main.py, whose firmware never prints that banner: mpremote would wait
     for good (a reflash's 120 s "no answer")."""
-    import signal
-
     original = VirtualBoard._spawn
     killed = []
 
@@ -166,3 +166,52 @@ def test_a_raw_repl_boot_that_dies_before_its_prompt_boots_into_the_raw_repl_aga
             pytest.fail("mpremote got no answer in %d s after a raw-REPL boot died" % DEADLINE_S)
     assert killed, "no raw-REPL boot happened"
     assert out.returncode == 0 and "ran 42" in out.stdout, out
+
+
+def test_input_sent_faster_than_the_repl_reads_it_never_stalls_the_relay(vboard):
+    """A host may send more than the board reads for a while (a paste into a busy REPL). The relay
+    must keep carrying the board's output meanwhile: a relay that blocks writing into the
+    process's full input, while the process blocks writing its echo into the relay's full output,
+    hangs both for good (a board's USB port never deadlocks that way)."""
+    import threading
+
+    lines = 40000  # each echoed with its result and a prompt: far more than a pty buffers either way
+    payload = b"1\r" * lines + b"print('done', 6 * 7)\r"
+    with serial.Serial(vboard.path, 115200, timeout=0.1) as ser:
+        to_friendly_repl(ser)
+        ser.write(b"import time; time.sleep(1)\r")  # busy: nothing is read while the paste arrives
+        writer = threading.Thread(target=ser.write, args=(payload,), daemon=True)
+        writer.start()
+        out, deadline = b"", time.monotonic() + DEADLINE_S
+        while not out.endswith(b"done 42\r\n>>> "):
+            assert time.monotonic() < deadline, "the relay stalled: %r" % out[-200:]
+            out += ser.read(65536)
+        writer.join(timeout=DEADLINE_S)
+        assert not writer.is_alive()
+    assert out.count(b"1\r\n1\r\n>>> ") > lines // 2  # echoed and answered, not dropped
+
+
+@pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadExceptionWarning")  # the relay's end, raised on purpose
+def test_a_silent_virtual_board_says_what_its_processes_and_relay_did(monkeypatch):
+    """When mpremote gets no answer, the error names the virtual board's recent process exits and
+    why its relay stopped, if it did: an exception there once ended the relay without a word."""
+    from host.link.flashing import BoardSilent, mpremote
+
+    with VirtualBoard() as board:
+        with BoardClient(board.path) as client:
+            client.call("status")
+        board._child.send_signal(signal.SIGKILL)  # a process that dies: the relay boots another
+        deadline = time.monotonic() + DEADLINE_S
+        while board.boots < 2:
+            assert time.monotonic() < deadline, "no reboot after the process was killed"
+            time.sleep(0.05)
+        assert re.fullmatch(r"boot 1 \(main\.py\) exited with -9 after [0-9.]+ s", board.exits[0]), board.exits
+
+        def broken(data):
+            raise RuntimeError("broken on purpose")
+
+        monkeypatch.setattr(board, "_from_child", broken)
+        with pytest.raises(BoardSilent) as silent:
+            mpremote(board.path, ["exec", "print(1)"], timeout=5)
+        assert "boot 1 (main.py) exited with -9" in str(silent.value)
+        assert "the relay stopped: RuntimeError: broken on purpose" in str(silent.value)
