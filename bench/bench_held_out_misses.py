@@ -12,7 +12,10 @@ Call (from the repository root, the venv's python):
 
 What it prints: per band of drawn force, the steps, the rms of estimate - gauge (mN, in the
 direction of the load), the rms of estimate - target (the loop's own end), and how many steps
-missed; then the totals.
+missed; then the totals; then estimate - gauge by a step's place in its side's sequence (the
+first loading step, the last unloading one, the others), and how much of it a group of steps
+shares (one actuator, side and direction: a calibration's or a friction's error) against what
+each step has of its own.
 """
 
 import glob
@@ -30,17 +33,26 @@ BANDS_N = (2.0, 3.0, 4.5, 7.0, 10.0, 17.0)
 
 
 def held_out_steps(runs_dirs):
-    """(|target| N, estimate - gauge mN, estimate - target mN, missed) of every held-out force step."""
+    """(|target| N, estimate - gauge mN, estimate - target mN, missed, group, place) of every
+    held-out force step; group: (run, side, phase); place: "first loading", "last unloading" or
+    "other loading" / "other unloading" in its side's sequence."""
     out = []
     for d in runs_dirs:
         for path in sorted(glob.glob(os.path.join(d, "run-*", "results.json"))):
             with open(path) as f:
                 r = json.load(f)
-            for x in (r.get("held_out") or {}).get("forces") or []:
+            rows = (r.get("held_out") or {}).get("forces") or []
+            for x in rows:
                 sign = 1.0 if x["target"] > 0 else -1.0
+                same = [y for y in rows if y["side"] == x["side"] and y["phase"] == x["phase"]]
+                if x["phase"] == "loading":
+                    place = "first loading" if same[0] is x else "other loading"
+                else:
+                    place = "last unloading" if same[-1] is x else "other unloading"
                 out.append((abs(x["target"]), 1000.0 * sign * (x["estimate"] - x["measured"]),
                             1000.0 * sign * (x["estimate"] - x["target"]),
-                            max(abs(x["steady_pct"]), abs(x["estimation_pct"])) > TARGETS["force_pct"]))
+                            max(abs(x["steady_pct"]), abs(x["estimation_pct"])) > TARGETS["force_pct"],
+                            (path, x["side"], x["phase"]), place))
     return out
 
 
@@ -70,6 +82,23 @@ def main():
     print("all: %d of %d steps beyond %g %% (%.1f %%); estimate - gauge %.0f mN rms, estimate - target %.0f mN rms"
           % (missed, len(steps), TARGETS["force_pct"], 100.0 * missed / len(steps), rms([s[1] for s in steps]),
              rms([s[2] for s in steps])))
+    print()
+    print("| place in its side's sequence | steps | estimate - gauge, mean | rms | beyond %g %% |" % TARGETS["force_pct"])
+    print("| --- | --- | --- | --- | --- |")
+    for place in ("first loading", "other loading", "other unloading", "last unloading"):
+        at = [s for s in steps if s[5] == place]
+        if at:
+            print("| %s | %d | %+.0f mN | %.0f mN | %d |" % (place, len(at), sum(s[1] for s in at) / len(at),
+                                                          rms([s[1] for s in at]), sum(s[3] for s in at)))
+    groups = {}
+    for s in steps:
+        groups.setdefault(s[4], []).append(s[1])
+    means = {g: sum(v) / len(v) for g, v in groups.items()}
+    own = [e - means[g] for g, v in groups.items() for e in v]
+    dof = len(own) - len(groups)
+    print("estimate - gauge shared by the steps of one actuator, side and direction (%d groups): %.0f mN rms of "
+          "the groups' means; each step's own: %.0f mN rms (about the groups' means, over %d degrees of freedom)"
+          % (len(groups), rms(list(means.values())), math.sqrt(sum(e * e for e in own) / dof) if dof > 0 else float("nan"), dof))
 
 
 if __name__ == "__main__":
