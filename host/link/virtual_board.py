@@ -167,6 +167,7 @@ class VirtualBoard:
         self._held_input = b""  # the client's bytes the process has not taken yet
         self._hold_input_until = None  # while a new process boots: monotonic time to give up waiting
         self._boot_started = 0.0  # monotonic time of the running process's start
+        self._boot_kind = "main.py"  # what it booted into: "main.py" or "raw REPL"
         self._boot_ready = False  # it printed a prompt or the firmware's hello
         self.exits = collections.deque(maxlen=EXITS_KEPT)  # one line per process exit, and the relay's end
 
@@ -283,6 +284,7 @@ class VirtualBoard:
         self._line_endings = BoardLineEndings()  # a frame the last process left unfinished is over
         self._hold_input_until = time.monotonic() + BOOT_INPUT_HOLD_S
         self._boot_started = time.monotonic()
+        self._boot_kind = "main.py" if run_main else "raw REPL"
         self._boot_ready = False
         self.boots += 1
 
@@ -454,8 +456,13 @@ class VirtualBoard:
             except subprocess.TimeoutExpired:
                 pass
         self.exits.append("boot %d (%s) exited with %s after %.1f s%s" % (
-            self.boots, "raw REPL" if self._raw_boot_pending or self._swallow is not None else "main.py",
+            self.boots, self._boot_kind,
             code, time.monotonic() - self._boot_started, "" if self._boot_ready else ", before its prompt"))
+        if self._hold_input_until is None:
+            # What it had not read yet dies with it, as a board's reset loses it: the next process
+            # must not get the rest of a line from the middle. Input held while it still booted
+            # (a Ctrl-C sent meanwhile) is the next process's.
+            self._held_input = b""
         hard = code == RESET_EXIT
         raw = self._raw_mode and not hard
         if self._raw_boot_pending and not hard and self._raw_boot_failures < RAW_BOOT_RETRIES:
