@@ -1,12 +1,14 @@
 """Where the offline force steps' errors come from, and what they imply for a whole run.
 
     .venv/bin/python bench/bench_force_error_budget.py --runs DIR [--anchors UM,UM] [--loop-hz HZ]
-        [--oversample N] [--oversample-times K] [--targets MN,MN,...] [--rows] SEED...
+        [--oversample N] [--oversample-times K] [--targets MN,MN,...] [--rows] [--refit [--trim]] SEED...
 
 The same steps as bench/bench_force_steps_offline.py (5, 10, 15, 10, 5 N a side after a 0.5 N
 preload, or --targets' magnitudes, e.g. the held-out steps' 2-7 N; settled 1.5 s, measured 0.5 s;
 the real firmware App on the simulated actuator on
-CPython, each board's identified calibration from the robustness run in DIR, the gauge hooked
+CPython, each board's identified calibration from the robustness run in DIR, or with --refit
+the force step replayed offline on the run's pots, Df and ladder and fitted again (--trim: and
+trimmed; what a change to the force step or its fit does, without a fresh run), the gauge hooked
 at --anchors um from each board's own anchor), but each hold's error is split with the
 simulator's true forces, which no bench has (a diagnostic, judged against the true load):
 
@@ -54,10 +56,12 @@ def holds(runs, seed, anchor_offset, tmp):
     from tests.sim.firmware_cases import _run
     from tests.sim.force_cases import _hooked_on_side
 
+    own = offline.gauge_anchor_um(runs, seed)
+    offline.RUN.anchor_um = own  # where --refit and --trim replay the guided steps: where the run hooked the gauge
     board, cal = offline.calibration(runs, seed, False, tmp)
     if cal is None:
         return []
-    anchor = anchor_offset + offline.gauge_anchor_um(runs, seed)
+    anchor = anchor_offset + own
     out = []
     for side, _ in offline.SIDES:
         app, world, sign = _hooked_on_side(cal, side, anchor, 200, board)
@@ -97,6 +101,9 @@ def main():
     ap.add_argument("--oversample-times", type=int, metavar="K", help="the run's own reads per step times K (at most 64)")
     ap.add_argument("--targets", metavar="MN,MN,...", help="the step sequence's magnitudes in mN (default 5000,10000,15000,10000,5000)")
     ap.add_argument("--rows", action="store_true", help="print every hold's split as well")
+    ap.add_argument("--refit", action="store_true", help="identify the force sections again first, replaying the guided "
+                    "force step on the run's ladder (bench/offline_force_rig.py refit_calibration; the gauge read true)")
+    ap.add_argument("--trim", action="store_true", help="then trim h and F0 in closed loop as the guided step does")
     a = ap.parse_args()
     if not os.path.isdir(a.runs):
         sys.exit("robustness data directory not found: %s" % a.runs)
@@ -111,6 +118,7 @@ def main():
             run.targets = tuple(int(v) for v in a.targets.split(","))
         except ValueError:
             sys.exit("--targets wants mN magnitudes separated by commas, e.g. 2500,4000,6500,4500,3000")
+    run.refit, run.trim = a.refit, a.trim
     run.oversample = a.oversample
     run.oversample_times = a.oversample_times
     if a.loop_hz:
@@ -131,7 +139,9 @@ def main():
     print("%d holds (%d actuators x %d anchors x 2 sides x %d steps), loop %s Hz%s, mN rms (mean) of each part:"
           % (len(rows), len(a.seeds), len(anchors), len(run.targets), a.loop_hz or "the boards'",
              (", %d reads a step" % a.oversample if a.oversample else "")
-             + (", the run's reads x%d" % a.oversample_times if a.oversample_times else "")))
+             + (", the run's reads x%d" % a.oversample_times if a.oversample_times else "")
+             + (", force sections refitted offline" + (" and trimmed" if a.trim else "") if a.refit else
+                ", trimmed again offline" if a.trim else "")))
     print("| step | " + " | ".join(PARTS) + " | beyond 2 % |")
     print("| --- " * (len(PARTS) + 2) + "|")
     steps = len(run.targets)

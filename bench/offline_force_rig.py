@@ -130,13 +130,33 @@ REFIT_LEVEL, REFIT_MAX_DUTY, REFIT_RANGE_MN = 625, 9000, 16000
 REFIT_ANCHOR = 45000  # where the run identified F0 (--anchor-mm 45); the steps may then go elsewhere
 
 
-def refit_calibration(board, cal, out_path, anchor):
+def run_ladder(runs, seed):
+    """{side's sign: the loading duties} the run's force step went up through on this board (its
+    force-points.csv), or {} when the run left none. A drawn motor's ladder is not 625 duty a level:
+    the step shrinks on a strong motor and the top follows the force range."""
+    import numpy as np
+
+    path = os.path.join(runs, "run-%s" % seed, "force-points.csv")
+    if not os.path.exists(path):
+        return {}
+    a = np.genfromtxt(path, delimiter=",", names=True)
+    out = {}
+    for sign in (-1, 1):
+        on = (a["loading"] > 0) & (np.sign(a["duty"]) == sign)
+        if np.any(on):
+            out[sign] = sorted({int(round(abs(v))) for v in a["duty"][on]})
+    return out
+
+
+def refit_calibration(board, cal, out_path, anchor, ladder=None):
     """The run's calibration with its force sections identified again, here and now: the guided
     force step's open-loop points replayed on the board with the run's pots and Df
-    (case_force_points_sim at `anchor`, REFIT_ROUNDS rounds a side, each loading until the gauge
-    reads 16 N or the spring nears the cavity, each on a freshly started firmware), fitted by the guided step's
-    own code (host/guided/force_calibration.py identify and force_sections). What a change to the
-    force fit does to the force steps, without a run of the whole chain."""
+    (case_force_points_sim at `anchor`, REFIT_ROUNDS rounds a side, each on a freshly started
+    firmware), fitted by the guided step's own code (host/guided/force_calibration.py identify
+    and force_sections). Each side goes up the run's own ladder (`ladder`, run_ladder) when there
+    is one, else in 625 duty levels until the gauge reads 16 N or the spring nears the cavity
+    (boards/sim.json's). What a change to the force fit does to the force steps, without a run of
+    the whole chain."""
     import numpy as np
 
     from host.calibration.file import read_calibration, write_calibration
@@ -144,12 +164,14 @@ def refit_calibration(board, cal, out_path, anchor):
     from host.guided.force_identification import TAUT_N, force_sections, identify
     from tests.sim.force_cases import case_force_points_sim
 
-    levels = list(range(REFIT_LEVEL, REFIT_MAX_DUTY + 1, REFIT_LEVEL))
+    ladder = ladder or {}
     pts = []
     for side, sign in SIDES:
+        levels = ladder.get(sign) or list(range(REFIT_LEVEL, REFIT_MAX_DUTY + 1, REFIT_LEVEL))
+        stop_mn, stop_um = (0, 0) if sign in ladder else (REFIT_RANGE_MN, int(CAVITY_NEAR_MM * 1000))
         for _ in range(REFIT_ROUNDS):
             rows = case_force_points_sim(cal, side, levels, anchor=anchor, board_path=board, measured=RUN.measured,
-                                         stop_mN=REFIT_RANGE_MN, stop_um=int(CAVITY_NEAR_MM * 1000))
+                                         stop_mN=stop_mn, stop_um=stop_um)
             top = sum(1 for r in rows if r[2])
             duties = levels[:top] + levels[:top - 1][::-1]
             for (d_um, f_mn, loading), duty in zip(rows, duties):
@@ -232,7 +254,8 @@ def calibration(runs, seed, exact, tmp):
     cal = without_force_range(cal, os.path.join(tmp, "run-%s.json" % seed))
     if RUN.refit:
         out = os.path.join(tmp, "refit-%s.json" % seed)
-        cal = out if os.path.exists(out) else refit_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
+        cal = out if os.path.exists(out) else refit_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR,
+                                                                run_ladder(runs, seed))
     if RUN.trim:
         out = os.path.join(tmp, "trim-%s.json" % seed)
         cal = out if os.path.exists(out) else trimmed_calibration(board, cal, out, RUN.anchor_um if RUN.at_gauge else REFIT_ANCHOR)
