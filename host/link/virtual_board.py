@@ -8,7 +8,7 @@ of its own (`root`), mounted as "/" inside MicroPython (VfsPosix), holding main.
 board.json and calibration.json.
 
 A load on the output block (`load=`, e.g. `parse_load("gauge@45")`) is what a person hooks on a
-bench: the board writes it to `rig.json` in its root, where boards/sim/bench_rig.py applies it to
+bench: the board writes it to `rig.json` in its root (host/link/flash_rig.py), where boards/sim/bench_rig.py applies it to
 the simulated world at boot and within ~100 ms of a change (`set_load`).
 
 Where a board soft-resets, the unix port exits; the relay then prints "MPY: soft reboot" and starts
@@ -42,6 +42,7 @@ except ImportError:  # Windows
 from firmware.protocol import SYNC
 from host.link.board_line_endings import BoardLineEndings
 from host.link.firmware_files import install_factory
+from host.link.flash_rig import FlashRig
 from host.errors import UserError, install_hint
 
 REPO = Path(__file__).resolve().parents[2]
@@ -61,7 +62,6 @@ INPUT_BUFFER = 1 << 16  # client bytes the relay holds for a process that is not
 EXITS_KEPT = 8  # the process exits a BoardSilent error can name (recent_exits)
 RAW_BOOT_RETRIES = 3  # a raw-REPL boot that keeps dying before its prompt is given up (main.py boots)
 RESET_EXIT = 77  # exit status of machine.reset() on the virtual board: boot main.py again
-RIG_APPLY_S = 0.35  # the firmware's rig polls rig.json every 100 ms: a few polls before trusting it
 
 # Runs first in every micropython process: mount the board's flash as "/"; install as `machine`
 # the simulated actuator's (boards/sim/machine.py, built from board.json) when the board file
@@ -146,6 +146,7 @@ class VirtualBoard:
         self.calibration = calibration
         self._own_root = root is None
         self.root = Path(root) if root else Path(tempfile.mkdtemp(prefix="lsea-vboard-"))
+        self._rig = FlashRig(self.root)
         self.factory = factory
         self.log = log
         self.load = load  # None: leave the rig as it is (the board file's: no load)
@@ -207,52 +208,25 @@ class VirtualBoard:
         if self._own_root:
             shutil.rmtree(self.root, ignore_errors=True)
 
-    # -- the bench rig: what a person mounts, through rig.json and gauge.json in the board's flash
-    # (boards/sim/bench_rig.py polls them from the firmware's main loop) ------------------
+    # -- the bench rig: what a person mounts and reads (host/link/flash_rig.py) --------------
     @property
     def actuator(self):
         """The simulated actuator's description (the board file's "actuator")."""
         return json.loads(self.board_path.read_text()).get("actuator") or {}
 
     def rig(self, rig, wait=True):
-        """Mount what `rig` says (bench_rig.apply's dict: reference, load, fault), keeping the other
-        entries of rig.json; rewritten atomically, applied by the firmware's rig within ~100 ms
-        (`wait`: return after a few of its polls)."""
-        rig_path = self.root / "rig.json"
-        try:
-            state = json.loads(rig_path.read_text())
-        except (OSError, ValueError):
-            state = {}
-        state.update(rig)
-        tmp = self.root / "rig.json.tmp"
-        tmp.write_text(json.dumps(state))
-        os.replace(tmp, rig_path)
-        if wait:
-            time.sleep(RIG_APPLY_S)
-        return state
+        """Mount what `rig` says (reference, load, fault); see FlashRig.mount."""
+        return self._rig.mount(rig, wait)
 
     def set_load(self, load):
         """Hook a load on the block (a parse_load dict); the running firmware's rig applies it
         within ~100 ms."""
-        self.rig({"load": dict(load)}, wait=False)
+        self._rig.mount({"load": dict(load)}, wait=False)
         self.load = dict(load)
 
     def gauge(self, max_age_s=1.0, beat=None, timeout_s=10.0):
-        """The force gauge's display, {"force_n", "t_s"}, once the rig has refreshed it within
-        `max_age_s`. `beat` (e.g. client.heartbeat_if_due) is called while waiting: the motor may
-        be running meanwhile, and the firmware stops it after 1 s without the host."""
-        path = self.root / "gauge.json"
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if beat is not None:
-                beat()
-            try:
-                if time.time() - path.stat().st_mtime <= max_age_s:
-                    return json.loads(path.read_text())
-            except (OSError, ValueError, KeyError):
-                pass
-            time.sleep(0.05)
-        raise UserError("the virtual rig shows no gauge reading (is the gauge hooked?)")
+        """The force gauge's display, {"force_n", "t_s"}; see FlashRig.gauge."""
+        return self._rig.gauge(max_age_s, beat, timeout_s)
 
     def __enter__(self):
         self.start()
