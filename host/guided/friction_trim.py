@@ -49,6 +49,7 @@ CHECK_FRACTIONS = (0.45, 0.75, 0.45, 0.2)  # the correction's check: loading, th
 # the spring's jitter peaks), by up to 0.39 N of 0.66 on a soft 9 N/mm spring against a 10 N/mm
 # gauge (seed 202611271100, whose 5 N steps missed by 10-15 % under the old limit, half of h).
 TRIM_LIMIT = (3.0, 0.2)
+FLOOR_WITH_FEED_FORWARD_N = 0.001  # a trim to no friction leaves this much beside a feed-forward duty (trimmed_sections)
 
 
 def _hold(client, gauge, target_n, settle_s, measure_s):
@@ -213,10 +214,18 @@ def trimmed_sections(doc, trim):
         return {}, ["force: friction not trimmed (%s); h stays %.3f N as identified" % (trim.why, h)]
     stats = dict(identified.get("fit") or {}, identified_n=h, trim_loading_mn=trim.loading_mn,
                  trim_unloading_mn=trim.unloading_mn, trim_holds=trim.holds)
-    sections = {"friction": friction_section(trim.friction_n, stats, ff_duty=identified.get("feed_forward_duty", 0))}
-    lines = ["force: friction trimmed in closed loop to h = %.3f N (identified %.3f): %d holds; at the targets held "
+    ff_duty = identified.get("feed_forward_duty", 0)
+    trimmed_n = trim.friction_n
+    floor = ""
+    if ff_duty and round(trimmed_n * 1000) < 1:
+        # the board takes a feed-forward duty only beside some friction (firmware/calibration.py):
+        # 1 mN keeps the position loop's, which the force step measured, in a file it accepts
+        trimmed_n = FLOOR_WITH_FEED_FORWARD_N
+        floor = "; kept at %.0f mN beside the position loop's feed-forward duty %d" % (1000 * trimmed_n, ff_duty)
+    sections = {"friction": friction_section(trimmed_n, stats, ff_duty=ff_duty)}
+    lines = ["force: friction trimmed in closed loop to h = %.3f N (identified %.3f)%s: %d holds; at the targets held "
              "both ways the estimate minus the gauge was %+.0f mN loading, %+.0f mN unloading" % (
-                 trim.friction_n, h, trim.holds, trim.loading_mn, trim.unloading_mn)]
+                 trim.friction_n, h, floor, trim.holds, trim.loading_mn, trim.unloading_mn)]
     errors = "; ".join("%+.1f N: %+.0f mN" % (sign * m, 1000 * c) for sign, rows in sorted(trim.f0.errors.items())
                        for m, c in rows)
     if trim.f0.why:

@@ -143,3 +143,24 @@ def test_a_block_whose_force_step_saw_no_friction_is_trimmed_too(tmp_path, monke
     doc, _, flashed, said = _trim_and_check(tmp_path, monkeypatch, rms_with=40.0, rms_without=110.0, h=0.0, h_error=-0.1)
     assert flashed and math.isclose(doc["friction"]["friction_n"], 0.1, abs_tol=1e-6), doc["friction"]
     assert any("friction trimmed in closed loop to h = 0.100 N (identified 0.000)" in s for s in said), said
+
+
+def test_a_trim_to_no_friction_keeps_the_position_loops_feed_forward_in_a_file_the_board_takes():
+    """A light block's h trimmed to nothing (the loop meets no friction) must still leave a friction
+    section the firmware accepts: the force step's feed-forward duty for position moves stays, and
+    the file cannot carry a feed-forward beside zero friction (firmware/calibration.py)."""
+    import dataclasses
+
+    from firmware.calibration import friction_constants
+    from host.calibration.file import friction_section
+    from host.fitting.force_correction import F0Correction
+    from host.guided.friction_trim import trimmed_sections
+
+    trim = trimmed_friction(0.15, {1: holds(trim_magnitudes(16.0), 0.0, 0.19)})  # to -0.04 N: nothing left
+    assert trim.friction_n == 0.0 and not trim.why, trim
+    trim = dataclasses.replace(trim, f0=F0Correction(why="not corrected here"))
+    doc = {"friction": friction_section(0.15, {}, ff_duty=900)}
+    sections, lines = trimmed_sections(doc, trim)
+    h_mn, ff = friction_constants(sections["friction"])  # raises on a section the board refuses
+    assert ff == 900 and 0 < h_mn <= 1, (h_mn, ff)
+    assert any("feed-forward" in line for line in lines), lines
