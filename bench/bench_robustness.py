@@ -43,9 +43,9 @@ from testkit.drawn_actuators import CHOICES, RANGES, describe, draw  # noqa: E40
 def judge(results):
     """{target: True/False/None} from a run's results.json, on the held-out figures where the run
     has them (host.experiments.targets.judged); None: the run stopped before it."""
-    from host.experiments.targets import TARGETS, headline, judged
+    from host.experiments.targets import JUDGED, TARGETS, headline, judged
 
-    out = {"Df": None, "displacement": None, "no blocking": None, "force steps": None}
+    out = dict.fromkeys(JUDGED)
     try:
         return judged(headline(results), results)
     except (KeyError, ValueError, TypeError):
@@ -89,6 +89,11 @@ def figures(results):
         own = ("%.1f / %.1f" % (max(abs(x["steady_pct"]) for x in t1), max(abs(x["estimation_pct"]) for x in t1))
                if t1 else "none run: beyond the force range")
         f["force %"] = "%s (5/10/15 N %s; %d held-out steps)" % (held, own, len(forces))
+        away = (ho.get("away") or {})
+        if away.get("forces"):
+            f["force % elsewhere"] = "%.1f / %.1f (%d steps at %g mm, calibrated at %g mm)" % (
+                max(abs(x["steady_pct"]) for x in away["forces"]), max(abs(x["estimation_pct"]) for x in away["forces"]),
+                len(away["forces"]), away["anchor_mm"], away["calibrated_at_mm"])
     if "stopped" in results:
         f["stopped"] = "%s: %s" % (results["stopped"]["phase"], results["stopped"]["why"])
     return f
@@ -208,7 +213,7 @@ def main(argv=None):
     if a.boards_only:
         return 0
     (out / "summary.json").write_text(json.dumps(rows, indent=1))
-    targets = ("Df", "displacement", "no blocking", "force steps")
+    from host.experiments.targets import JUDGED as targets
     lines = ["| actuator | " + " | ".join(targets) + " | figures | wall s |", "| --- |" + " --- |" * (len(targets) + 2)]
     for r in rows:
         cells = [{True: "met", False: "**missed**", None: "not run"}[r["verdict"][t]] for t in targets]

@@ -112,7 +112,9 @@ class Table1Refused(OneField):
 @dataclass
 class HeldOut(Figure):
     """What the calibration never saw (host/experiments/held_out.py), filled phase by phase: Df on a
-    validation sweep, positions and forces drawn with `seed`. The targets are judged on these."""
+    validation sweep, positions and forces drawn with `seed`, and forces drawn with the gauge away
+    from the calibration's anchor (`away`: anchor_mm, calibrated_at_mm, force_draws, forces). The
+    targets are judged on these."""
 
     KEY = "held_out"
     seed: int
@@ -120,3 +122,4 @@ class HeldOut(Figure):
     positions: list = None
     force_draws: dict = None
     forces: list = None
+    away: dict = None

@@ -21,6 +21,13 @@ on the board:
   the trim held in closed loop, from the paper's 5/10/15 N and from each other, and 0.25 N from
   every level of the force step (the points F0 was fitted to); run as the paper's steps are
   (hold_sequence, 1.5 s to settle, 0.5 s measured).
+- forces at another position: the force step and its trim hold the gauge at one anchor (75 % of the
+  stroke), and under load the firmware's deformation is the true one times the slope of pot 2's
+  calibrated curve there (the reference reads the wiper, so pot 2's mounting error stays in its
+  calibration, and Df takes out only the two pots' difference): F0 holds where it was made. So on
+  each side AWAY_LOADING more magnitudes, then AWAY_UNLOADING below the highest, drawn as above,
+  are run with the gauge hooked at the stroke's middle, where the paper ran its Table 1
+  (away_anchor_mm).
 
 The draws come from a generator seeded by the run (`draw_seed`: from the clock unless given),
 printed and kept in results.json, so a run can be repeated with the same targets.
@@ -44,6 +51,9 @@ LEVEL_GAP_N = 0.25  # and this far from the force step's open-loop levels (F0's 
 POSITION_GAP_MM = 1.0
 RANGE_FRACTIONS = (0.15, 0.9)  # of the side's identified range: inside the calibrated F0 table
 MIN_FORCE_N = 2.0  # below this a step is mostly the fibre's slack and the block's friction band (the paper's smallest is 5 N)
+AWAY_LOADING = 2  # force steps a side with the gauge away from the calibration's anchor
+AWAY_UNLOADING = 1
+MIN_AWAY_MM = 5.0  # "another position" is at least this far from the anchor
 SWEEP_DUTY_FACTOR = 0.8  # the validation sweep's duty, of the calibration sweep's
 
 
@@ -91,6 +101,17 @@ def draw_forces(rng, reached_n, held_n=(), levels_n=(), loading=LOADING, unloadi
     down = sorted(_draw(rng, lo, up[-1] - FORCE_GAP_N, unloading, avoid + [(u, FORCE_GAP_N) for u in up], FORCE_GAP_N),
                   reverse=True)
     return up + down
+
+
+def away_anchor_mm(stroke_mm, anchor_mm):
+    """Where the force steps away from the calibration's position hook the gauge: the stroke's
+    middle (the paper's Table 1 ran there), or a quarter of the stroke toward the far end from an
+    anchor set within MIN_AWAY_MM of the middle."""
+    mid = stroke.middle(stroke_mm)
+    if abs(mid - anchor_mm) >= MIN_AWAY_MM:
+        return round(mid, 1)
+    quarter = stroke.length(stroke_mm) / 4.0
+    return round(anchor_mm - quarter if anchor_mm >= mid else anchor_mm + quarter, 1)
 
 
 def df_validation(session, rig, duty, say=print):

@@ -281,21 +281,34 @@ class PaperRun:
                 figures.Table1Refused(refused)]
 
     def held_out_forces(self, results):
-        """Force steps at forces drawn fresh, away from those the trim and its F0 check held."""
-        opts, force = self.opts, self.accepted["force"].data
+        """Force steps at forces drawn fresh, away from those the trim and its F0 check held: at the
+        gauge's anchor, where the force step was made, then at another position (held_out.py)."""
+        opts = self.opts
         self.say("== held-out force steps (drawn) ==")
+        self.held_out.force_draws, self.held_out.forces = self._drawn_steps(opts.anchor_mm, held_out.LOADING, held_out.UNLOADING)
+        self.held_out.store(results)  # kept should the steps elsewhere stop the run
+        away = held_out.away_anchor_mm(opts.stroke, opts.anchor_mm)
+        self.say("  at D2 = %g mm, away from the calibration's anchor (%g mm):" % (away, opts.anchor_mm))
+        draws, rows = self._drawn_steps(away, held_out.AWAY_LOADING, held_out.AWAY_UNLOADING)
+        self.held_out.away = {"anchor_mm": away, "calibrated_at_mm": opts.anchor_mm, "force_draws": draws, "forces": rows}
+        return [self.held_out]
+
+    def _drawn_steps(self, anchor_mm, loading, unloading):
+        """({side: what was drawn and why}, rows) of force steps drawn on each side and run with the
+        gauge hooked at `anchor_mm`."""
+        opts, force = self.opts, self.accepted["force"].data
         reached = self._reached()
         rows, draws = [], {}
         for side in gauge_sides(opts.gauge_sides):
             held = held_out.held_by_calibration(reached[side]) if opts.trim and opts.friction else []
-            magnitudes = held_out.draw_forces(self.rng, reached[side], held, held_out.side_levels(force, side))
+            magnitudes = held_out.draw_forces(self.rng, reached[side], held, held_out.side_levels(force, side),
+                                              loading=loading, unloading=unloading)
             draws[side] = {"reached_n": reached[side], "held_by_calibration_n": held, "drawn_n": magnitudes}
             self.say("  %s side (reached %.1f N; the calibration held %s N): %s N" % (
                 side, reached[side], ", ".join("%g" % h for h in held) or "-", ", ".join("%g" % m for m in magnitudes) or "none"))
             if magnitudes:
-                rows += held_out.forces(self.session, self.rig, self.prompter, opts.anchor_mm, side, magnitudes)
-        self.held_out.force_draws, self.held_out.forces = draws, rows
-        return [self.held_out]
+                rows += held_out.forces(self.session, self.rig, self.prompter, anchor_mm, side, magnitudes)
+        return draws, rows
 
 
 # (progress name, phase) in the order they run: each phase returns the figures it measured

@@ -15,6 +15,9 @@ TARGETS = {  # judged on the held-out figures (host/experiments/held_out.py) whe
     "force_pct": 2.0,  # steady-state and estimation errors of the force steps
     "blocking_margin_mm": 5.0,  # "no blocking": the block runs on to within this of the stroke's end (55 mm of 60)
 }
+# what a run is judged on, in the order reports and benches show them ("force elsewhere": the force
+# steps with the gauge away from the anchor the force calibration was made at; same 2 %)
+JUDGED = ("Df", "displacement", "no blocking", "force steps", "force elsewhere")
 
 
 def headline(r):
@@ -49,11 +52,14 @@ def held_out_headline(r):
     """The held-out figures the targets are judged on (None where the run has none)."""
     ho = r.get("held_out") or {}
     forces = ho.get("forces") or []
-    out = {"held_out_df_mm": (ho.get("df") or {}).get("peak_binned_mm"),
-           "held_out_displacement_mm": displacement.max_error(ho["positions"]) if ho.get("positions") else None,
-           "held_out_steady_pct": max(abs(x["steady_pct"]) for x in forces) if forces else None,
-           "held_out_estimation_pct": max(abs(x["estimation_pct"]) for x in forces) if forces else None}
-    return out
+    away = (ho.get("away") or {}).get("forces") or []
+    worst = lambda rows, key: max(abs(x[key]) for x in rows) if rows else None  # noqa: E731
+    return {"held_out_df_mm": (ho.get("df") or {}).get("peak_binned_mm"),
+            "held_out_displacement_mm": displacement.max_error(ho["positions"]) if ho.get("positions") else None,
+            "held_out_steady_pct": worst(forces, "steady_pct"),
+            "held_out_estimation_pct": worst(forces, "estimation_pct"),
+            "away_steady_pct": worst(away, "steady_pct"),
+            "away_estimation_pct": worst(away, "estimation_pct")}
 
 
 def judged(h, r=None):
@@ -67,7 +73,10 @@ def judged(h, r=None):
     pos = max(h["after"], pick(h.get("held_out_displacement_mm"), h["after"]))
     ss = pick(h.get("held_out_steady_pct"), h["worst_steady_pct"])
     est = pick(h.get("held_out_estimation_pct"), h["worst_estimation_pct"])
+    away = (h.get("away_steady_pct"), h.get("away_estimation_pct"))
     return {"Df": None if df is None else df <= TARGETS["df_mm"],
             "displacement": pos <= TARGETS["displacement_mm"],
             "no blocking": h["no_blocking"],
-            "force steps": None if ss is None or est is None else max(ss, est) <= TARGETS["force_pct"]}
+            "force steps": None if ss is None or est is None else max(ss, est) <= TARGETS["force_pct"],
+            # a run from before these steps existed has none: not judged
+            "force elsewhere": None if None in away else max(away) <= TARGETS["force_pct"]}

@@ -137,6 +137,39 @@ def test_the_targets_are_judged_on_the_held_out_figures(tmp_path):
     assert "<= 2 % (held out): met" in meet
 
 
+def test_force_steps_away_from_the_calibrations_position_are_judged_apart(tmp_path):
+    """The force steps with the gauge away from the force calibration's anchor are their own
+    target: a miss there is a miss whatever the steps at the anchor say, and a run from before
+    they existed is not judged on them."""
+    from types import SimpleNamespace
+
+    from host.experiments import report
+    from host.experiments.targets import headline, judged
+
+    def with_away(steady_pct):
+        results = _results(0.05, 0.05, 1.0)
+        row = {"target": -7.1, "measured": -7.1 * (1 + steady_pct / 100), "estimate": -7.1, "side": "high",
+               "phase": "loading", "steady_pct": steady_pct, "estimation_pct": 0.3}
+        results["held_out"] = {"seed": 7, "forces": [dict(row, steady_pct=0.5)],
+                               "away": {"anchor_mm": 30.0, "calibrated_at_mm": 45.0, "forces": [row],
+                                        "force_draws": {"high": {"reached_n": 16.0, "held_by_calibration_n": [],
+                                                                 "drawn_n": [7.1]}}}}
+        return results
+
+    assert judged(headline(_results(0.05, 0.05, 1.0)))["force elsewhere"] is None
+    far = with_away(-4.0)
+    ok = judged(headline(far), far)
+    assert ok["force steps"] and ok["force elsewhere"] is False
+    text = report.write(tmp_path, far, SimpleNamespace()).read_text()
+    lines = {line.split("|")[1].strip(): line for line in text.splitlines() if line.startswith("| ")}
+    row = lines["force steps away from the calibration's position (the paper's Table 1 ran at mid stroke)"]
+    assert "D2 = 30 mm, the force calibration's at 45 mm" in row and "worst 4.0 % steady-state" in row
+    assert row.endswith("<= 2 % (held out): **NOT met** |")
+    assert "**Force steps away from the calibration's position**" in text and "| 60 mm | loading | -7.10 |" in text
+    near = with_away(1.5)
+    assert judged(headline(near), near)["force elsewhere"] is True
+
+
 def test_a_step_beyond_the_calibrated_range_is_said_to_be_so(tmp_path):
     """A 15 N step on a spring whose force step reached 15.5 N: not a silent miss, but a step the
     calibration never showed the actuator could hold, said in the table and under it."""

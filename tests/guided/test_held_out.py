@@ -46,3 +46,15 @@ def test_the_friction_deflection_cancels_between_directions_and_the_assembly_err
     assert abs(balanced - 0.03) < 0.01
     assert pooled > 0.07  # the deflection's net share, which has nothing to do with Df
     assert abs(deflection - 0.1) < 0.005
+
+
+def test_the_force_steps_elsewhere_hook_the_gauge_at_mid_stroke_or_a_quarter_stroke_off():
+    """Mid stroke (where the paper ran Table 1) unless the anchor sits within 5 mm of it; then a
+    quarter of the stroke away from the anchor, toward the end with room."""
+    assert held_out.away_anchor_mm((0.0, 60.0), 45.0) == 30.0
+    assert held_out.away_anchor_mm((-22.0, 58.0), 38.0) == 18.0
+    assert held_out.away_anchor_mm((0.0, 60.0), 32.0) == 17.0
+    assert held_out.away_anchor_mm((0.0, 60.0), 27.0) == 42.0
+    for stroke, anchor in (((0.0, 60.0), 45.0), ((0.0, 60.0), 30.0), ((10.0, 55.0), 34.0)):
+        away = held_out.away_anchor_mm(stroke, anchor)
+        assert abs(away - anchor) >= held_out.MIN_AWAY_MM and stroke[0] < away < stroke[1]
