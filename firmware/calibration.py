@@ -27,7 +27,14 @@ high_um]}: where the output block's end stops are in its calibrated position D2,
 controller keeps its soft stroke limits a margin inside, see firmware/controller.py), and the
 optional "force_range" ({"kind": "force_range", "fixed": [low_mN, high_mN]}: the forces the force
 calibration showed the spring and motor hold, low < 0 < high; force mode refuses a target beyond
-them, where F0 is the end of its fit and not a measurement, see firmware/app.py).
+them, where F0 is the end of its fit and not a measurement, see firmware/app.py), and the optional
+"deformation_gain" ({"kind": "pwl", "fixed": [...]}: a table over D2, input (D2 >> 1) +
+DF_PWL_OFFSET as a Df table's, of the factor the deformation D1* - D2 is multiplied by, in
+units of 1/GAIN_ONE: pot 2's calibrated curve keeps its mounting error, so a deformation reads
+larger or smaller by the curve's slope where the block is, and F0 holds only where it was
+measured; see firmware/measurement.py), and the optional "deformation_offset" (the same kind of
+table, values in um within +-OFFSET_MAX_UM: what D1* - D2 still reads at no load where the block
+is, the part of the assembly error the Df fit left, taken off before the gain).
 
 `load_calibration(path)` returns a `Calibration` or raises `CalibrationError(reason)`; every
 integer list is checked for the layout its evaluator needs (lengths, ranges, increasing knots,
@@ -56,6 +63,12 @@ TABLE_SECTIONS = ("df", "force", "force_inverse")  # may be pwl tables instead o
 FRICTION_SECTION = "friction"
 STROKE_SECTION = "stroke"
 FORCE_RANGE_SECTION = "force_range"
+GAIN_SECTION = "deformation_gain"
+GAIN_ONE = 16384  # a deformation gain of 1 (the step multiplies, then shifts right by 14)
+GAIN_MIN = GAIN_ONE // 2  # 0.5 .. 2: far beyond a pot's slope error, and |d| * gain within 2**30
+GAIN_MAX = GAIN_ONE * 2
+OFFSET_SECTION = "deformation_offset"
+OFFSET_MAX_UM = 2000  # what Df leaves is tens of um; 2 mm would be no residual but a missing Df
 STROKE_MAX_UM = 65535  # protocol.POSITION_LIMIT_UM (tested equal; this module stays free of the protocol): positions beyond it are clamped anyway
 FRICTION_MAX_MN = 10000  # 10 N: far beyond a slider's friction; keeps h * s + F0 within range
 FF_DUTY_MAX = 5000  # half the duty range: a feed-forward beyond it would be a runaway, not friction
@@ -247,10 +260,35 @@ def force_range_constants(section, name=FORCE_RANGE_SECTION):
     return array("i", values)
 
 
+def _d2_table(section, name, low, high, what):
+    """array('i') of a table over D2 whose values lie in low..high, checked; None when absent."""
+    if section is None:
+        return None
+    if not isinstance(section, dict) or section.get("kind") != "pwl":
+        raise CalibrationError("section %s: not a table" % name)
+    values = _int_list(section, name)
+    check_pwl(values, name)
+    _check(values[1] == 0, name, "a %s table takes its input unshifted" % name)
+    n = values[0]
+    _check(all(low <= v <= high for v in values[2 + n :]), name, "%s must be %d..%d" % (what, low, high))
+    return array("i", values)
+
+
+def gain_constants(section, name=GAIN_SECTION):
+    """array('i') of a deformation gain table (pwl over D2, in units of 1/GAIN_ONE), checked; None when absent."""
+    return _d2_table(section, name, GAIN_MIN, GAIN_MAX, "gains (0.5 to 2 of %d)" % GAIN_ONE)
+
+
+def offset_constants(section, name=OFFSET_SECTION):
+    """array('i') of a deformation offset table (pwl over D2, um), checked; None when absent."""
+    return _d2_table(section, name, -OFFSET_MAX_UM, OFFSET_MAX_UM, "offsets (um)")
+
+
 class Calibration:
     """What the control step needs: pot1/pot2 as (kind, k), df/force/force_inverse as k or None
     (df_kind, force_kind and force_inverse_kind say "poly" or "pwl"), friction as [h_mN] or None, stroke
-    as [low_um, high_um] or None, force_range as [low_mN, high_mN] or None. Data only, filled by
+    as [low_um, high_um] or None, force_range as [low_mN, high_mN] or None, gain and offset as
+    deformation gain and offset tables or None. Data only, filled by
     `checked`: the App keeps it after the boot has let this module go (portable.release), and a
     method would keep the whole module alive."""
 
@@ -272,6 +310,8 @@ def checked(body, crc):
     cal.friction = friction_constants(body.get(FRICTION_SECTION))
     cal.stroke = stroke_constants(body.get(STROKE_SECTION))
     cal.force_range = force_range_constants(body.get(FORCE_RANGE_SECTION))
+    cal.gain = gain_constants(body.get(GAIN_SECTION))
+    cal.offset = offset_constants(body.get(OFFSET_SECTION))
     cal.crc = crc
     cal.board = body.get("board")
     cal.date = body.get("date")

@@ -2,8 +2,16 @@
 
     D1 = conv(pot1 code)   D2 = conv(pot2 code)       (bcm3 or pwl, per pot, from the calibration)
     D1* = D1 - Df_hat(D1)                             (poly or pwl table, when the Df step was calibrated)
-    d = D1* - D2                                      (um)
+    d = (D1* - D2 - z(D2)) * g(D2)                   (um; z, g: deformation offset and gain tables, 0 and 1 without)
     F = F0(d) + h * s                                 (poly or pwl table, mN, when the force step was calibrated)
+
+g: the reference the pots are calibrated against reads each pot's wiper, so pot 2's curve keeps
+pot 2's mounting error, and once Df is taken out D1* - D2 is the true deformation times the slope
+of pot 2's curve where the block is (a few % apart along the stroke on a bowed mount). The force
+step measures F0 at one place; g (1 there) is measured along the stroke with a constant load
+(host/guided/gain_sweep.py), so F0 holds elsewhere. z is what D1* - D2 still reads at no load
+where the block is (the Df fit's residual, tens of um: at 15-30 N/mm a few tenths of a newton
+that differ from place to place), measured by the same step's no-load sweep.
 
 F is the force the load feels. Without a `friction` section it is the spring force F0(d). With
 one (h, the output block's Coulomb friction, mN), the block sits between the spring and the load
@@ -37,6 +45,7 @@ except ImportError:  # CPython
 STROKE_CLAMP_UM = const(65535)  # [copied-constants] protocol.POSITION_LIMIT_UM
 _DF_PWL_OFFSET = const(32768)  # [copied-constants] pwl_fixed.DF_PWL_OFFSET
 FORCE_CLAMP_MN = const(1000000)
+_GAIN_CLAMP_UM = const(32767)  # |D1* - D2| before the gain: |d| * gain (<= 2**15) stays within 2**30
 
 # [sign-fix] (docs/firmware.md, Viper idioms): a word that may be negative is read as ((v + _B29) & _M30) - _B29
 _B29 = const(536870912)
@@ -62,7 +71,9 @@ FF_DUTY = const(15)  # the duty that holds the spring at the friction force (0: 
 F_IN = const(16)  # added to d before F0 is evaluated: 0 for a polynomial, FORCE_PWL_OFFSET for a table
 DF_IN = const(17)  # 1 when Df is a table: its input is (D1 >> 1) + DF_PWL_OFFSET (pwl_fixed.df_table_input)
 FS_SHIFT = const(18)  # the spring force's low-pass: over 2**FS_SHIFT steps (filter_shift)
-WORDS = const(19)
+HAS_GAIN = const(19)  # 1 with a deformation gain table
+HAS_OFFSET = const(20)  # 1 with a deformation offset table
+WORDS = const(21)
 TABLE_MAX_BITS = const(12)  # 2 x 4096 x 2 bytes = 16 KiB; wider ADCs evaluate the curves per step
 
 
@@ -137,6 +148,9 @@ class Measurement:
         inv_table = getattr(calibration, "force_inverse_kind", "poly") == "pwl"
         self.inverse_eval = pwl if inv_table else poly
         self.inverse_in = FORCE_PWL_OFFSET if inv_table else 0
+        self.k_gain = getattr(calibration, "gain", None)
+        self.k_offset = getattr(calibration, "offset", None)
+        self.gain_eval = pwl
         fr = getattr(calibration, "friction", None)  # [h mN], [h mN, ff duty] or None
         st = zeros(WORDS)
         self.st = st
@@ -146,6 +160,8 @@ class Measurement:
         st[DF_IN] = 1 if df_table else 0
         st[HAS_DF] = 1 if self.k_df is not None else 0
         st[HAS_FORCE] = 1 if self.k_force is not None else 0
+        st[HAS_GAIN] = 1 if self.k_gain is not None else 0
+        st[HAS_OFFSET] = 1 if self.k_offset is not None else 0
         st[LAST_CODE] = (1 << self.adc_bits) - 1
         st[FS_SHIFT] = filter_shift(loop_hz)
         self._play = self._load_force  # bound once: found in the instance by viper's first look
@@ -269,10 +285,20 @@ class Measurement:
                 d2 = -STROKE_CLAMP_UM
         s[D1] = d1
         s[D2] = d2
-        s[DEFL] = d1 - d2
+        d = d1 - d2
+        at = (d2 >> 1) + _DF_PWL_OFFSET  # a table over D2 takes D2 as a Df table takes D1
+        if s[HAS_OFFSET]:  # what Df left where the block is (module docstring)
+            d = d - int(self.gain_eval(at, self.k_offset))
+        if s[HAS_GAIN]:  # the slope of pot 2's curve where the block is, taken out
+            if d > _GAIN_CLAMP_UM:
+                d = _GAIN_CLAMP_UM
+            elif d < -_GAIN_CLAMP_UM:
+                d = -_GAIN_CLAMP_UM
+            d = (d * int(self.gain_eval(at, self.k_gain)) + 8192) >> 14
+        s[DEFL] = d
         if not s[HAS_FORCE]:
             return
-        f = int(self.force_eval(d1 - d2 + s[F_IN], self.k_force))
+        f = int(self.force_eval(d + s[F_IN], self.k_force))
         s[FORCE] = int(self._play(f)) if s[FRIC] else f
 
     @micropython.viper

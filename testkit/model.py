@@ -46,7 +46,7 @@ SPRING_ORDER = 7  # the model calibration's F0(d) and d(F0) polynomials
 
 
 def model_sections(board=None, n_points=None, feed_forward=False, unrounded=False):
-    """The sections pot1, pot2 (pwl tables), df, force, force_inverse and friction, each
+    """The sections pot1, pot2 (pwl tables), df, deformation_offset, deformation_gain, force, force_inverse and friction, each
     {"kind", "fixed"} as the firmware reads them; with `feed_forward` the friction section also
     holds the duty at which the stalled motor holds the spring at the friction force.
 
@@ -75,9 +75,19 @@ def model_sections(board=None, n_points=None, feed_forward=False, unrounded=Fals
         t = np.asarray(travel[name], dtype=float)
         keep = np.concatenate([[True], np.diff(c) > 0])  # the table needs increasing codes
         out[name] = {"kind": "pwl", "fixed": list(export_pwl(c[keep], t[keep], bits, max_error_um=1e9))}
+    # the deformation gain: with Df out, D1* - D2 reads the true deformation times the slope of pot
+    # 2's wiper travel where the block is (firmware/measurement.py), 1 + e2'(x), so g = 1 / (1 + e2'(x))
+    from host.calibration.file import gain_section, offset_section
+
+    e2 = world.pots[1].mount_error_mm
+    slope = np.array([(e2(x + 0.01) - e2(x - 0.01)) / 0.02 for x in xs])
+    out["deformation_gain"] = gain_section(np.asarray(travel["pot2"]), 1.0 / (1.0 + slope))
     d1 = np.asarray(travel["pot1"])
     df = d1 - np.asarray(travel["pot2"])
-    out["df"] = _poly(export_poly(np.polyfit(d1, df, 8), float(d1.min()), float(d1.max()), 1000, 1000, max_error=5))
+    df_coeffs = np.polyfit(d1, df, 8)
+    out["df"] = _poly(export_poly(df_coeffs, float(d1.min()), float(d1.max()), 1000, 1000, max_error=5))
+    # and what the order-8 Df leaves at no load where the block is (a few um here)
+    out["deformation_offset"] = offset_section(np.asarray(travel["pot2"]), df - np.polyval(df_coeffs, d1))
     cav = float(board["actuator"]["springs"]["cavity_mm"])
     d = np.linspace(-cav, cav, 401)
     f = np.array([world.spring_force(v) for v in d])

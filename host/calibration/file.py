@@ -36,9 +36,14 @@ from firmware.calibration import (
     SCHEMA,
     STROKE_SECTION,
     FORCE_RANGE_SECTION,
+    GAIN_ONE,
+    GAIN_SECTION,
+    OFFSET_SECTION,
     CalibrationError,
     force_range_constants,
     friction_constants,
+    gain_constants,
+    offset_constants,
     parse_document,
     payload_crc,
     poly_constants,
@@ -49,7 +54,7 @@ from firmware.pwl_fixed import DF_PWL_OFFSET
 from host.errors import UserError, check_user_file
 from host.calibration.fixed_export import export_force_table, export_poly, export_pot
 
-SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION, FORCE_RANGE_SECTION)
+SECTIONS = POT_SECTIONS + POLY_SECTIONS + (FRICTION_SECTION, STROKE_SECTION, FORCE_RANGE_SECTION, OFFSET_SECTION, GAIN_SECTION)
 MAX_FILE_BYTES = 1 << 20  # ours are a few KB (the board reads at most 64 KiB); 1 MiB is no calibration
 INFO_KEYS = ("board", "date", "pots")
 
@@ -93,6 +98,8 @@ def check_sections(doc):
         friction_constants(doc.get(FRICTION_SECTION))
         stroke_constants(doc.get(STROKE_SECTION))
         force_range_constants(doc.get(FORCE_RANGE_SECTION))
+        gain_constants(doc.get(GAIN_SECTION))
+        offset_constants(doc.get(OFFSET_SECTION))
     except CalibrationError as e:
         raise UserError(str(e)) from None
 
@@ -203,7 +210,7 @@ def _set_section(doc, name, section):
 
 
 # measured through the pot curves: the end stops in their frame of positions, the rest through D1 and D2
-MEASURED_THROUGH_POTS = ("df", "force", "force_inverse", "friction", "stroke", "force_range")
+MEASURED_THROUGH_POTS = ("df", "force", "force_inverse", "friction", "stroke", "force_range", OFFSET_SECTION, GAIN_SECTION)
 
 
 class CalibrationFile:
@@ -327,6 +334,32 @@ def force_table_section(knots_in, knots_out, in_range, units, stats=None, df=Fal
         "fixed": list(fixed),
         "fixed_check": fixed.report(),
     }
+
+
+def _d2_table_section(what, d2_mm, values, out_scale, check, fields, stats):
+    """A table over D2 (mm, held flat beyond the first and last knot) for the firmware, checked."""
+    try:
+        fixed = export_force_table(d2_mm, values, (d2_mm[0], d2_mm[-1]), in_scale=500.0, out_scale=out_scale,
+                                   offset=DF_PWL_OFFSET, rising=False)
+        section = dict({"kind": "pwl", "d2_mm": [float(v) for v in d2_mm]}, **fields)
+        section.update({"fit": stats or {}, "fixed": list(fixed), "fixed_check": fixed.report()})
+        check(section)
+    except (ValueError, CalibrationError) as e:
+        raise UserError("cannot export the deformation %s for the firmware: %s" % (what, e)) from None
+    return section
+
+
+def gain_section(d2_mm, gains, stats=None):
+    """The deformation gain along the stroke (firmware/measurement.py): `gains` (1 where F0 was
+    measured) at positions `d2_mm`."""
+    return _d2_table_section("gain", d2_mm, gains, float(GAIN_ONE), gain_constants,
+                             {"gain": [float(v) for v in gains]}, stats)
+
+
+def offset_section(d2_mm, offsets_mm, stats=None):
+    """What D1* - D2 still reads at no load (mm) at positions `d2_mm`, for the firmware to take off."""
+    return _d2_table_section("offset", d2_mm, offsets_mm, 1000.0, offset_constants,
+                             {"offset_mm": [float(v) for v in offsets_mm]}, stats)
 
 
 def friction_section(friction_n, stats=None, ff_duty=0):

@@ -10,6 +10,8 @@ import pytest
 from firmware.calibration import convert, load_calibration
 from firmware.measurement import STROKE_CLAMP_UM
 from firmware.poly_fixed import poly
+from firmware.pwl_fixed import DF_PWL_OFFSET, pwl
+from host.calibration.file import gain_section, offset_section
 from testkit import model
 from testkit.interpreters import on_cpython, on_micropython
 
@@ -23,7 +25,11 @@ MARGIN = 1000
 def cal_path(request, tmp_path_factory):
     """The model calibration with pwl or bcm3 pots, and no friction (F = F0(d) here)."""
     path = tmp_path_factory.mktemp("chain") / ("%s.json" % request.param)
-    model.write_model_calibration(path, pots=request.param, friction=None)
+    # a deformation gain that varies along the stroke (sim.json's pot 2 has no mounting error, so
+    # the model's own is 1 everywhere): the step's multiply, rounding and table all take part
+    gain = gain_section([-5.0 + 10.0 * i for i in range(8)], [0.93, 0.97, 1.0, 1.02, 1.05, 1.04, 1.1, 1.12])
+    offset = offset_section([-5.0 + 5.0 * i for i in range(15)], [0.02 * (-1) ** i - 0.01 * i / 7 for i in range(15)])
+    model.write_model_calibration(path, pots=request.param, friction=None, deformation_gain=gain, deformation_offset=offset)
     assert load_calibration(str(path)).pot1[0] == request.param
     return str(path)
 
@@ -34,11 +40,15 @@ def clamp(x):
 
 def reference_chain(cal, r1, r2):
     """The chain written out from the calibration's integer evaluators (the paper: D1* = D1 -
-    Df_hat(D1), d = D1* - D2, F = F0(d); positions clamped to +-STROKE_CLAMP_UM)."""
+    Df_hat(D1), d = (D1* - D2 - z(D2)) g(D2), F = F0(d); positions clamped to +-STROKE_CLAMP_UM)."""
     d1 = clamp(convert(cal.pot1[0], r1, list(cal.pot1[1])))
     d1s = clamp(d1 - poly(d1, list(cal.df)))
     d2 = clamp(convert(cal.pot2[0], r2, list(cal.pot2[1])))
     d = d1s - d2
+    if cal.offset is not None:  # less the deformation offset where the block is
+        d -= pwl((d2 >> 1) + DF_PWL_OFFSET, list(cal.offset))
+    if cal.gain is not None:  # times the deformation gain there, rounded to nearest
+        d = (max(-32767, min(32767, d)) * pwl((d2 >> 1) + DF_PWL_OFFSET, list(cal.gain)) + 8192) >> 14
     return [d1, d1s, d2, d, poly(d, list(cal.force))]
 
 
@@ -61,6 +71,8 @@ def test_every_adc_code_through_the_chain_matches_the_host_reference(cal_path, t
     d2 = [row[2] for row in got[5]]
     assert max(d1) - min(d1) > 50000 and max(d2) - min(d2) > 50000
     assert len({row[4] for row in got[4]}) > 100
+    # the gain took part: d is not D1* - D2 wherever the block is away from a gain of 1
+    assert sum(row[3] != row[1] - row[2] for sweep in got for row in sweep) > 1000
     # the in-process firmware (CPython) agrees too
     assert on_cpython(CASES, "case_chain(%r, %d, %r, %r)" % (cal_path, BITS, FIXED[2:3], tabulate)) == got[4:6]
 
