@@ -7,6 +7,7 @@ from host.commands._options import PORT_HELP, add_uf2_argument, order_or_auto, r
 from host.errors import DONE, MISSED, UserError
 from host.fitting.models import MODELS
 from host.guided.flow import BRINGUP, Options, STEPS, StepRefused, bringup_done, run_steps
+from host.guided.gain_sweep import WEIGHT_FRACTION
 from host.terminal import error, output
 
 DEFAULT = Options()  # the defaults of the options below are Options' own: one place for each
@@ -15,7 +16,7 @@ DEFAULT = Options()  # the defaults of the options below are Options' own: one p
 def add_parser(subparsers):
     p = subparsers.add_parser(
         "calibrate",
-        help="guided calibration: pots, assembly (Df) and force, written to the calibration file and flashed",
+        help="guided calibration: pots, assembly (Df), gain (the deformation along the stroke) and force, written to the calibration file and flashed",
         description="Guided calibration on the bench (the paper's sections 2-4). Each step says what to mount "
         "and waits for Enter, sweeps or loads the actuator with progress lines, checks the data, shows "
         "the fit statistics and a plot, and asks to accept (y), reject (n) or abort (a). Accepted "
@@ -23,7 +24,9 @@ def add_parser(subparsers):
         "report the file's CRC. With --port sim the rig is simulated (boards/sim/bench_rig.py).",
     )
     p.add_argument("step", nargs="?", choices=(BRINGUP,) + STEPS + ("all",), default="all",
-                   help="one step, or all in order (default; bringup first unless it passed before on this board)")
+                   help="one step, or all in order (default; bringup first unless it passed before on this board): "
+                   "pots, assembly (Df), gain (a weight hung from the block, swept along the stroke: the deformation's "
+                   "gain along it, so F0 holds away from the gauge's anchor), force")
     add_guided_arguments(p, yes_help="no questions: mount automatically (virtual rig), accept results that pass every check")
     p.add_argument("--out", default=str(DEFAULT.out), metavar="FILE", help="calibration file to write (default %(default)s)")
     p.add_argument("--plots", default=None, metavar="DIR", help="where to write the PNG plots (default: beside --out)")
@@ -36,7 +39,8 @@ def add_parser(subparsers):
     p.add_argument("--levels", type=ranged(int, 3, 50), default=DEFAULT.levels, help="force: loading steps of 5000/N duty each (default %(default)s), "
                    "taken until the gauge reads --force-range")
     p.add_argument("--force-range", type=ranged(float, 1, 25), default=DEFAULT.force_range, metavar="N",
-                   help="force: load until the gauge reads this many newtons (default %(default)s: the paper's forces reach 15 N)")
+                   help="force: load until the gauge reads this many newtons (default %%(default)s: the paper's forces reach "
+                   "15 N); gain: the weight is %d %%%% of it" % round(100 * WEIGHT_FRACTION))
     p.add_argument("--max-duty", type=ranged(int, 100, 10000), default=DEFAULT.max_duty, help="force: largest open-loop duty (default %(default)s)")
     p.add_argument("--anchor-mm", type=ranged(float, -STROKE_LIMIT_MM, STROKE_LIMIT_MM), default=None,
                    help="force: where the fibre goes taut, mm (default 75 %% along the stroke: 45 of 0-60 mm)")

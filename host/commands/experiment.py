@@ -12,7 +12,7 @@ def add_parser(subparsers):
     p = subparsers.add_parser(
         "experiment",
         help="run the paper's experiments (calibration, Figs. 3a/5/7/8, dead zone, Table 1) and write a report",
-        description="Calibrate (pots, assembly, force, as `host calibrate`), then run the paper's "
+        description="Calibrate (pots, assembly, gain, force, as `host calibrate`), then run the paper's "
         "experiments and write DIR/report.md with PNG figures, each number beside the paper's. "
         "With --port sim everything runs on the virtual board (7-8 minutes on a quiet 2-core machine, more beside other work); with --port sim:rp2040 on an emulated Pico.",
     )

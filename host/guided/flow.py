@@ -28,7 +28,7 @@ from host.fitting.model_select import DEFAULT_BUDGET
 from host.guided.checks import Limits
 from host.terminal import warn
 
-STEPS = ("pots", "assembly", "force")
+STEPS = ("pots", "assembly", "gain", "force")
 
 
 class StepRefused(UserError):
@@ -202,10 +202,12 @@ def step_registry():
     """{name: Step} of the calibration steps, in STEPS' order (their modules imported now)."""
     from host.guided.assembly_calibration import calibrate_assembly
     from host.guided.force_calibration import calibrate_force
+    from host.guided.gain_sweep import calibrate_gain
     from host.guided.pot_calibration import calibrate_pots
 
     return {"pots": Step("pots", lambda session, rig, prompter, opts, path: calibrate_pots(session, rig, prompter, opts)),
             "assembly": Step("assembly", calibrate_assembly),
+            "gain": Step("gain", calibrate_gain),
             "force": Step("force", calibrate_force, after=_trim_friction)}
 
 

@@ -77,6 +77,14 @@ class Rig:
         self._do("Hook the force gauge to the output block through the fibre, %s, anchored so it goes "
                  "%s.%s" % (where, taut, wire), **change)
 
+    def hang_weight(self, weight_n):
+        """A weight on a fibre from the output block over a pulley at the high end: a force of
+        about `weight_n` toward the high end wherever the block is (the gain step's steady load)."""
+        low, high = self.ends
+        self._do("Hang a weight of about %g N from the output block, on a fibre over a pulley at the %s end (it "
+                 "pulls the block toward %s wherever it is); unhook the force gauge." % (weight_n, high, high),
+                 load={"kind": "constant", "force_n": float(weight_n)})
+
     def read_gauge_n(self, client, records=None, seconds=0.3):
         """The gauge's reading in N: from its display, or (--gauge adc) the mean of the reference
         channel over `records` (telemetry just logged) or over `seconds` of new telemetry."""

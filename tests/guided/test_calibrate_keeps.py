@@ -20,6 +20,7 @@ def _sections():
     return {
         "pots": {n: dict(cal[n], pot_id="%s-new" % n) for n in ("pot1", "pot2")},
         "assembly": {"df": cal["df"]},
+        "gain": {"deformation_gain": cal["deformation_gain"]},
         "force": {n: cal[n] for n in ("force", "force_inverse", "friction")},
     }
 
@@ -53,7 +54,7 @@ def old_file(tmp_path):
     """A complete calibration made earlier (all sections), the file the run must not lose."""
     sec = _sections()
     doc = {"board": "sim", "pots": {"pot1": "old-1", "pot2": "old-2"}, "date": "2026-01-01T00:00:00+00:00"}
-    for step in ("pots", "assembly", "force"):
+    for step in ("pots", "assembly", "gain", "force"):
         doc.update(sec[step])
     doc["pot1"] = dict(doc["pot1"], pot_id="old-1")
     doc["pot2"] = dict(doc["pot2"], pot_id="old-2")
@@ -75,10 +76,12 @@ def _steps(monkeypatch, fail_at=None, failure=None):
 
     import host.guided.assembly_calibration as a
     import host.guided.force_calibration as f
+    import host.guided.gain_sweep as g
     import host.guided.pot_calibration as p
 
     monkeypatch.setattr(p, "calibrate_pots", step("pots"))
     monkeypatch.setattr(a, "calibrate_assembly", step("assembly"))
+    monkeypatch.setattr(g, "calibrate_gain", step("gain"))
     monkeypatch.setattr(f, "calibrate_force", step("force"))
 
 
@@ -86,7 +89,7 @@ def _backups(path):
     return sorted(path.parent.glob(path.name + ".*.bak"))
 
 
-@pytest.mark.parametrize("fail_at", ["pots", "assembly", "force"])
+@pytest.mark.parametrize("fail_at", ["pots", "assembly", "gain", "force"])
 def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, capsys, fail_at):
     before = old_file.read_bytes()
     _steps(monkeypatch, fail_at=fail_at)
@@ -102,9 +105,10 @@ def test_an_interrupted_full_run_loses_no_section(old_file, monkeypatch, capsys,
     assert now["pot1"]["pot_id"] == "pot1-new"  # the accepted pots were written
     # Df and force measured through the old curves went with them, unless re-measured here,
     # and the person was told so, in a warning (never silenced) that names the copy
-    assert ("df" in now) == (fail_at == "force") and "force" not in now
+    assert ("df" in now) == (fail_at in ("gain", "force")) and "force" not in now
+    assert ("deformation_gain" in now) == (fail_at == "force")
     warned = capsys.readouterr().err
-    assert "warning: df, force, force_inverse, friction measured through the old pot curves" in warned
+    assert "warning: df, force, force_inverse, friction, deformation_gain measured through the old pot curves" in warned
     assert "(kept in %s)" % backup in warned, warned
 
 
@@ -115,7 +119,7 @@ def test_a_single_step_keeps_the_previous_file_and_changes_only_its_sections(old
     (backup,) = _backups(old_file)
     assert read_calibration(backup) == before
     now = read_calibration(old_file)
-    for name in ("pot1", "pot2", "force", "force_inverse", "friction"):
+    for name in ("pot1", "pot2", "deformation_gain", "force", "force_inverse", "friction"):
         assert now[name] == before[name], name
 
 
@@ -136,7 +140,7 @@ def test_a_corrupt_file_is_kept_aside_by_a_full_run_and_refused_by_a_step(tmp_pa
     assert set(read_calibration(path)) >= {"pot1", "pot2", "df", "force", "force_inverse", "friction"}
 
 
-@pytest.mark.parametrize("fail_at", ["assembly", "force"])
+@pytest.mark.parametrize("fail_at", ["assembly", "gain", "force"])
 def test_an_interrupted_run_keeps_what_it_measured_and_says_where_it_stopped(old_file, monkeypatch, fail_at):
     """host calibrate's run log (host/guided/run_log.py): results.json and report.md beside the
     calibration file, rewritten after every step, and on a stop the step and the reason."""
@@ -149,7 +153,7 @@ def test_an_interrupted_run_keeps_what_it_measured_and_says_where_it_stopped(old
     log.stop("the board stopped answering")
     results = json.loads(log.json_path.read_text())
     done = [s["step"] for s in results["steps"]]
-    assert done == (["pots"] if fail_at == "assembly" else ["pots", "assembly"])
+    assert done == ["pots", "assembly", "gain", "force"][:["assembly", "gain", "force"].index(fail_at) + 1]
     assert all(s["accepted"] and s["lines"] == ["fitted"] for s in results["steps"])
     assert results["stopped"] == {"phase": fail_at, "why": "the board stopped answering"}
     report = log.report_path.read_text()

@@ -32,11 +32,14 @@ def full_run(tmp_path_factory):
 def test_every_step_is_accepted_written_and_verified(full_run):
     out, accepted, said = full_run
     # a first full run checks the wiring first (bringup), and records it beside the file
-    assert list(accepted) == ["bringup", "pots", "assembly", "force"]
+    assert list(accepted) == ["bringup", "pots", "assembly", "gain", "force"]
     assert json.loads(out.with_name(out.stem + ".bringup.json").read_text())["ok"]
     doc = read_calibration(out)  # CRC and every section checked by the firmware's own parser
-    for name in ("pot1", "pot2", "df", "force", "force_inverse", "friction", "stroke", "force_range"):
+    for name in ("pot1", "pot2", "df", "deformation_offset", "deformation_gain", "force", "force_inverse", "friction", "stroke", "force_range"):
         assert doc[name] and doc[name]["fixed"], name
+    # pot 2 of boards/sim.json is mounted true: what is left of its slope is its curve's (a few %)
+    lo, hi = doc["deformation_gain"]["fit"]["gain_range"]
+    assert 0.95 < lo <= 1.0 <= hi < 1.05, (lo, hi)
     # the board takes force targets within what the force step held on each side (about 17.9 N here)
     lo, hi = doc["force_range"]["range_n"]
     assert -20.0 < lo < -15.0 and 15.0 < hi < 20.0 and doc["force_range"]["fit"]["assumed"] == [], doc["force_range"]
@@ -58,14 +61,15 @@ def test_every_step_is_accepted_written_and_verified(full_run):
     # one flash per step, each a new file; after the force step's trim, the corrected F0 and the
     # identified one for the check, and the corrected one once more when it is kept
     if "and kept" in checked[0]:  # a table, its inverse the same knots swapped
-        assert len(crcs) == 6 and len(set(crcs)) == 5 and crcs[-1] == crcs[-3], crcs
+        assert len(crcs) == 7 and len(set(crcs)) == 6 and crcs[-1] == crcs[-3], crcs
         assert doc["force"]["kind"] == doc["force_inverse"]["kind"] == "pwl" and doc["force"]["fit"]["identified"]
         assert doc["force"]["knots_in"] == doc["force_inverse"]["knots_out"]
     else:
-        assert "NOT kept" in checked[0] and len(crcs) == 5 and len(set(crcs)) == 5, crcs
+        assert "NOT kept" in checked[0] and len(crcs) == 6 and len(set(crcs)) == 6, crcs
         assert "correction_mn" not in doc["force"]["fit"]
     assert crcs[-1] == json.loads(out.read_text())["crc32"]
-    for png in ("calibration-pot1.png", "calibration-pot2.png", "calibration-df.png", "calibration-force.png"):
+    for png in ("calibration-pot1.png", "calibration-pot2.png", "calibration-df.png", "calibration-gain.png",
+                "calibration-force.png"):
         assert (out.parent / png).stat().st_size > 10000
 
 
