@@ -136,22 +136,13 @@ def direction_balanced_peak(x, resid, direction, width=1.0, min_count=3):
     and the two averaged; the peak of the bin means of both directions pooled, as the fit's own
     figure is taken; the mean of half the difference between the directions, the friction's
     deflection). Bins where a direction has fewer than `min_count` samples are left out."""
-    from host.fitting.assembly import binned_peak
+    from host.fitting.assembly import binned_peak, direction_bin_means
 
-    idx = np.floor((x - np.min(x)) / width).astype(int)
-    size = int(idx.max()) + 1
-    means, counts = [], []
-    for sign in (1, -1):
-        sel = direction == sign
-        c = np.bincount(idx[sel], minlength=size)
-        s = np.bincount(idx[sel], weights=resid[sel], minlength=size)
-        counts.append(c)
-        means.append(s / np.maximum(c, 1))
-    both = (counts[0] >= min_count) & (counts[1] >= min_count)
-    if not both.any():
+    _, forward, backward, _ = direction_bin_means(x, resid, direction, width, min_count)
+    if not len(forward):
         return float("nan"), binned_peak(x, resid, width), float("nan")
-    balanced = (means[0][both] + means[1][both]) / 2.0
-    deflection = float(np.mean((means[0][both] - means[1][both]) / 2.0))
+    balanced = (forward + backward) / 2.0
+    deflection = float(np.mean((forward - backward) / 2.0))
     return float(np.max(np.abs(balanced))), binned_peak(x, resid, width), deflection
 
 

@@ -62,6 +62,26 @@ def binned_peak(x, resid, width=1.0):
     return float(np.max(np.abs(sums[full] / counts[full]))) if full.any() else float("nan")
 
 
+def direction_bin_means(x, values, direction, width=1.0, min_count=3, lo=None):
+    """(bin centres, forward means, backward means, samples) of `values` in bins `width` wide in
+    `x` from `lo` (default: the lowest x), each sweep direction's mean apart (direction +1 / -1),
+    over the bins where both have `min_count` samples: the two averaged cancel what the block's
+    friction adds one way and takes the other."""
+    lo = float(np.min(x)) if lo is None else lo
+    idx = np.floor((x - lo) / width).astype(int)
+    size = int(idx.max()) + 1
+    counts, means = [], []
+    for sign in (1, -1):
+        sel = direction == sign
+        c = np.bincount(idx[sel], minlength=size)
+        s = np.bincount(idx[sel], weights=values[sel], minlength=size)
+        counts.append(c)
+        means.append(s / np.maximum(c, 1))
+    both = (counts[0] >= min_count) & (counts[1] >= min_count)
+    centres = lo + (np.arange(size) + 0.5) * width
+    return centres[both], means[0][both], means[1][both], (counts[0] + counts[1])[both]
+
+
 def fit_df(d1_mm, df_mm, order):
     """(coefficients high first, residuals, order, {order: cv rms}) of Df(D1); `order` an integer
     or "auto" (the paper's quartic unless a higher order cross-validates better)."""

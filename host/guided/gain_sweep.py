@@ -31,7 +31,7 @@ import numpy as np
 from firmware.calibration import CalibrationError, load_calibration
 from host.calibration.file import gain_section, offset_section
 from host.errors import UserError
-from host.fitting.assembly import STOP_ZONE_UM, near_the_stops
+from host.fitting.assembly import STOP_ZONE_UM, direction_bin_means, near_the_stops
 from host.guided import acquire
 from host.guided.outcome import StepOutcome
 
@@ -51,21 +51,11 @@ def weight_n(opts):
 
 
 def direction_means(d2_mm, defl_mm, direction, width=BIN_MM, min_count=MIN_COUNT):
-    """(bin centres mm, mean deformation mm, samples) over `width` bins of D2 where both
-    directions have `min_count` samples: the mean of the two directions' means."""
+    """(bin centres mm, mean deformation mm, samples) over `width` bins of D2 (whole multiples of
+    it) where both directions have `min_count` samples: the mean of the two directions' means."""
     lo = np.floor(np.min(d2_mm) / width) * width
-    idx = np.floor((d2_mm - lo) / width).astype(int)
-    size = int(idx.max()) + 1
-    counts, means = [], []
-    for sign in (1, -1):
-        sel = direction == sign
-        c = np.bincount(idx[sel], minlength=size)
-        s = np.bincount(idx[sel], weights=defl_mm[sel], minlength=size)
-        counts.append(c)
-        means.append(s / np.maximum(c, 1))
-    both = (counts[0] >= min_count) & (counts[1] >= min_count)
-    centres = lo + (np.arange(size) + 0.5) * width
-    return centres[both], (means[0][both] + means[1][both]) / 2.0, (counts[0] + counts[1])[both]
+    centres, forward, backward, counts = direction_bin_means(d2_mm, defl_mm, direction, width, min_count, lo=lo)
+    return centres, (forward + backward) / 2.0, counts
 
 
 def smoothed(values, counts, bins=SMOOTH_BINS):
