@@ -151,10 +151,8 @@ def calibrate_gain(session, rig, prompter, opts, calibration_path):
     noload = _samples(records, direction)
     rig.hang_weight(w)
     lo, hi = opts.stroke
-    try:
-        records, direction, duty = _sweep(session, prompter, opts, 0.8 * (hi - lo))
-    finally:
-        rig.no_load()
+    records, direction, duty = _sweep(session, prompter, opts, 0.8 * (hi - lo))
+    rig.no_load()  # (not on a stop: a stopped run's next step asks for the load it needs anyway)
     offset_knots, offsets, knots, gains, stats = offset_and_gain(noload, _samples(records, direction), opts.anchor_mm)
     stats["duty"] = duty
     ok = GAIN_LIMITS[0] <= stats["gain_range"][0] and stats["gain_range"][1] <= GAIN_LIMITS[1]
