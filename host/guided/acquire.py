@@ -15,6 +15,7 @@ import time
 import numpy as np
 
 from firmware import protocol as P
+from firmware.pi_control import DUTY_MAX
 from host.errors import UserError
 from host.link import stream
 from host.link.board_time import NO_DATA_S
@@ -143,7 +144,7 @@ def sweep(client, duty, say=None, stops=None):
     With a dict `stops`, its "low" and "high" get the records standing still at each end stop
     (the low one from the end of the backward run, which arrives as slowly as the forward one)."""
     with open_stroke(client):
-        drive_to_stop(client, -max(3 * abs(duty), 2500))
+        drive_to_stop(client, -min(max(3 * abs(duty), 2500), DUTY_MAX))  # a hard sweep's fast leg: full duty at most
         if say:
             say("  sweeping forward (duty %+d)" % abs(duty))
         fwd_all = drive_to_stop(client, abs(duty))

@@ -81,3 +81,12 @@ def test_a_drive_after_the_host_fell_silent_between_two_still_reaches_the_end_st
             again = acquire.drive_to_stop(client, -2500)
         assert abs(_at_rest(client) - low) <= acquire.STALL_CODES, "the drive stopped at the soft limit"
         assert np.ptp(again[:, acquire.COL["raw2"]]) <= 2 * acquire.STALL_CODES
+
+
+def test_a_hard_sweep_runs_its_fast_leg_at_full_duty_at_most(model_calibration):
+    """The gain step sweeps harder when the block stalls against its weight (gain_sweep.DUTY_STEP);
+    at duty 5000 the sweep's fast leg to the low stop (three times the duty) was 15000, which the
+    firmware refuses: a drawn actuator's run stopped there (stop 55)."""
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as client:
+        records, direction = acquire.sweep(client, 5000)
+    assert (direction > 0).sum() > 20 and (direction < 0).sum() > 20
