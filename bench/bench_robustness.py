@@ -142,6 +142,9 @@ def main(argv=None):
     ap.add_argument("--hour", type=int, metavar="YYYYMMDDHH",
                     help="with --fresh --reuse: the hour whose seeds to draw (default: now), to finish an evaluation "
                          "run after its hour (its seeds are not fresh any more, so --reuse is required)")
+    ap.add_argument("--first-draw", type=int, default=0, metavar="I",
+                    help="with --fresh: draws I .. I+DRAWS-1 of the hour (default 0): a second run in the same hour "
+                         "after a first was stopped, on seeds none was run with")
     ap.add_argument("--only-seed", type=int, help="run just this draw's seed")
     ap.add_argument("--no-base", action="store_true", help="skip the boards/sim.json row")
     ap.add_argument("--out", default="out/robustness", help="where the boards and runs go")
@@ -163,7 +166,7 @@ def main(argv=None):
         seeds = [a.only_seed]
     elif a.fresh:
         base = (a.hour if a.hour is not None else int(time.strftime("%Y%m%d%H"))) * 100
-        seeds = [base + i for i in range(a.draws)]
+        seeds = [base + i for i in range(a.first_draw, a.first_draw + a.draws)]
         print("evaluation seeds %d-%d (%s)" % (seeds[0], seeds[-1], "from the date and hour: none was run before this hour"
                                                  if a.hour is None else "the run of hour %d, finished" % a.hour),
               file=sys.stderr)
