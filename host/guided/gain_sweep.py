@@ -42,7 +42,7 @@ MIN_COUNT = 3  # samples of one direction in a bin for the bin to count
 KNOT_MM = 2.0  # the firmware's table: a knot every 2 mm over the swept range, flat beyond it
 SMOOTH_BINS = 3  # the offset table: each bin's mean with its neighbours' (weighted by samples)
 MIN_DEFORMATION_MM = 0.05  # below this the weight is too light (or not hung) to read a slope from
-GAIN_LIMITS = (0.67, 1.5)  # beyond these pot 2 sits askew: a mechanical problem, not a calibration
+GAIN_LIMITS = (0.5, 2.0)  # what the firmware takes; beyond, pot 2 sits so askew it is a mechanical problem
 DUTY_STEP = 1.5  # a sweep that stalls against the weight is run again this much harder
 
 
@@ -167,7 +167,7 @@ def calibrate_gain(session, rig, prompter, opts, calibration_path):
     plots = [_plot(opts.plot_path("gain"), offset_knots, offsets, knots, gains, stats)]
     data = {"offset_knots_mm": offset_knots, "offsets_mm": offsets, "knots_mm": knots, "gains": gains, "stats": stats}
     sections = {"deformation_offset": offset_section(offset_knots, offsets, {"range_um": stats["offset_range_um"]}),
-                "deformation_gain": gain_section(knots, gains, stats)}
+                "deformation_gain": gain_section(knots, np.clip(gains, *GAIN_LIMITS), stats)}  # refused if clipped
     return StepOutcome("gain", sections, lines, plots, ok=ok, data=data)
 
 
