@@ -276,7 +276,7 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     the force sections a table of the model's spring scaled by 1.03, and h 0.40 N for the model's
     0.30 N. The loop then holds the load about 3 % short of the targets (checked on one side). The
     trim brings h back (the friction change and F0's error separated), its holds measure F0's error
-    (1-6 % of each target), it writes the corrected F0 table and its inverse, and the same force
+    (2-5 % of each target, the two sides' mean), it writes the corrected F0 table and its inverse, and the same force
     steps then meet 2 % on both sides (1.1 % when written; 1.4 and 1.6 % with stop 44's half-rate
     end of the force ramp, when the bound went from 1.5 to 2 %; not measured apart with stop 45's
     exponential approach, [force-approach], which offline tallies on drawn actuators favour:
@@ -298,7 +298,13 @@ def test_the_trim_corrects_an_f0_that_reads_3_percent_high(tmp_path):
     assert before > 0.025, before
     trim = trimmed_friction(0.40, _trim_holds(path, trim_magnitudes(16.0), SIDES))
     assert abs(trim.friction_n - true_h) < 0.06, trim
-    assert not trim.f0.why and all(0.01 < c / m < 0.07 for rows in trim.f0.errors.values() for m, c in rows), trim
+    # F0's error is what the two sides' holds share at each magnitude (about 3 %); what differs
+    # between the sides is the friction and a few um of deformation at the anchor (30 mN each,
+    # 0.6 % at 4.8 N: the model calibration's deformation offset moved one side's 4.8 N from
+    # 2.0 to 0.9 % and the other's from 5.8 to 7.2 %, stop 55)
+    assert not trim.f0.why, trim
+    by_side = [dict(rows) for rows in trim.f0.errors.values()]
+    assert len(by_side) == 2 and all(0.02 < (by_side[0][m] + by_side[1][m]) / 2 / m < 0.05 for m in by_side[0]), trim
     doc = read_calibration(path)
     sections, lines = trimmed_sections(doc, trim)
     assert set(sections) == {"friction", "force", "force_inverse"}, lines
