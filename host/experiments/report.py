@@ -377,11 +377,14 @@ def _held_out_section(add, r):
     away = ho.get("away") or {}
     if away:
         add("**Force steps away from the calibration's position**: the gauge hooked at D2 = %g mm, the force step and "
-            "its trim held it at %g mm. Under load the firmware's deformation is the true one times the slope of pot 2's "
-            "calibrated curve where the block is (pot 2's mounting error stays in its calibration: the reference reads "
-            "the wiper), so F0 holds where it was made; these steps say how far it holds. On each side %d loading and %d "
-            "unloading forces drawn as above." % (away["anchor_mm"], away["calibrated_at_mm"], held_out.AWAY_LOADING,
-                                                  held_out.AWAY_UNLOADING))
+            "its trim held it at %g mm. Under load the firmware's D1* - D2 is what Df left at no load plus the true "
+            "deformation times the slope of pot 2's calibrated curve where the block is (pot 2's mounting error stays in "
+            "its calibration: the reference reads the wiper), so F0 measured at one place holds elsewhere only as well "
+            "as the gain step's offset and gain tables take those out (%s); these steps say how well. On each side %d "
+            "loading and %d unloading forces drawn as above." % (
+                away["anchor_mm"], away["calibrated_at_mm"],
+                "in this calibration" if r.get("calibration", {}).get("gain") else "not in this calibration",
+                held_out.AWAY_LOADING, held_out.AWAY_UNLOADING))
         add("")
         _force_table(add, away.get("forces") or [])
 
