@@ -282,7 +282,7 @@ class SweepFit:
 
 def fit_sweep(path, model="auto", order=None):
     """Fit one potentiometer's sweep CSV (columns raw, reference[, direction]) as `host fit` does:
-    model "auto" (the cheapest firmware model near the sweep's noise floor), "bcm", "pwl", ..."""
+    model "auto" (the cheapest firmware model within 0.5 % of the lowest cross-validated error), "bcm", "pwl", ..."""
     from host.fitting.pot_fit import fit_sweep as fit  # the one copy of `host fit`'s fitting
     from host.fitting.sweep import load_sweep
 

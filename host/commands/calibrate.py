@@ -72,7 +72,7 @@ def add_method_arguments(p):
                    "on the 60 mm side only (same as --model bcm --order 3 --df-order 4 --force-order 2 "
                    "--gauge-sides high --no-friction, and it overrides those options)")
     p.add_argument("--model", default=DEFAULT.model, choices=list(MODELS) + ["auto"], metavar="MODEL", help="pot model: auto (default: the cheapest firmware curve, BCM-3 or a "
-                   "free-knot piecewise-linear table, within 10 %% of the sweep's noise floor), bcm, pwl, ... "
+                   "free-knot piecewise-linear table, within 0.5 %% of the lowest cross-validated error), bcm, pwl, ... "
                    "(see host fit --help)")
     p.add_argument("--order", type=ranged(int, 1, 64), default=None, help="pot model order (default: bcm 3, pwl 5)")
     p.add_argument("--budget", type=ranged(int, 4, 4096), default=DEFAULT.budget, help="--model auto: most numbers a pot curve may store "

@@ -18,7 +18,7 @@ def add_parser(subparsers):
         help="fit a potentiometer calibration curve to a sweep CSV (default: auto, the choice host calibrate makes; "
         "--model bcm --order 3 is the paper's BCM); --out writes it into a calibration file",
         description="Fit a calibration curve (default: auto, the cheapest curve the firmware evaluates "
-        "near the sweep's noise floor, as host calibrate chooses; --model bcm --order 3 is the paper's "
+        "that predicts held-out samples as well as the best, as host calibrate chooses; --model bcm --order 3 is the paper's "
         "BCM) to a sweep CSV with columns raw,reference[,direction]. Prints the fit statistics, the "
         "sweep's own noise floor and what hygiene removed; optionally draws the fit and writes it to "
         "the calibration file the firmware loads.",
@@ -28,8 +28,8 @@ def add_parser(subparsers):
         "--model",
         default="auto",  # as host calibrate and host demo: a newcomer's first fit is the one a calibration makes
         choices=list(MODELS) + ["auto"],
-        help="calibration model (default auto, as host calibrate: the cheapest firmware model near the noise "
-        "floor, within --budget); bcm is the paper's",
+        help="calibration model (default auto, as host calibrate: the cheapest firmware model within 0.5 %% of "
+        "the lowest cross-validated error, within --budget); bcm is the paper's",
     )
     p.add_argument("--order", type=ranged(int, 1, 64),
                    help="with a named --model: degree or number of knots/points (default: bcm 3, pwl 5, pcm 10, ...)")

@@ -1,34 +1,47 @@
-"""`--model auto`: choose the cheapest calibration the firmware can run that is good enough.
+"""`--model auto`: choose the calibration curve, among those the firmware can run, that predicts
+positions it was not fitted to best.
 
 The firmware evaluates two kinds of pot curve in integer arithmetic: the rational Bezier of
 degree 3 (`bcm3`; degrees 1 and 2 are the same curves after exact degree elevation) and a
-piecewise-linear table (`pwl`). The candidates are therefore BCM of degree 1..3 and free-knot
-piecewise-linear curves with k knots, ordered by how many numbers the fit stores (n_params).
+piecewise-linear table (`pwl`). The candidates are BCM of degree 1..3 and free-knot tables of
+TABLE_KNOTS knots, within a budget of stored numbers (n_params).
 
-Rule: take the cheapest candidate whose RMS is within `tolerance` (10 %) of the sweep's noise
-floor, because a better fit than the noise allows only learns the noise, and whose residuals
-have no local bias the noise cannot explain: over BIAS_BINS equal bins of the codes, each bin's
-mean residual, in units of its standard error (the bin's own scatter / sqrt(samples in it)),
-stays within the Student-t quantile for that bin's sample count at a family-wise false-alarm
-rate of BIAS_ALPHA over all bins (Bonferroni): with 10-30 samples a bin's scatter is itself
-uncertain, and a fixed 3.5 refused good curves 8-25 % of the time on pure noise. The RMS alone hides a knee the curve cuts: on a pot with 5 LSB of noise a table 44 um
-off over a whole millimetre passed at 3 % above the floor, and that error went on into Df and
-the position loop. If none gets there, take the most accurate candidate within the parameter
-budget (DEFAULT_BUDGET numbers) or, among those within PLATEAU (2 %) of its RMS and without a local
-bias, the cheapest, and say so.
+Rule: each candidate whose RMS on the sweep is within PRUNE of the best one's is scored by the
+root mean square of its hold-out errors over interleaved folds (host/fitting/cross_validation.py:
+sample i held out in fold i % 5, so every fold spans the sweep), and the cheapest whose score is
+within NEAR_BEST of the lowest is taken. A curve that only learns the sweep's noise scores worse
+on the held-out samples; one that cuts a knee scores worse too, however close its RMS is to the
+noise floor.
+
+Why not the cheapest curve within 10 % of the noise floor (the rule until stop 58): the
+deformation the force estimate rests on is the difference of two pots' positions less a few
+hundred um, so a curve that is 10-40 um off over a millimetre or two (at a knee, on a pot whose
+sweep is noisy, where a few more knots would follow it) costs 0.1-0.6 N at 15 N/mm, and the RMS
+cannot see it: 10 um of local error under 20-30 um of noise moves the RMS by a few per cent. On
+the 24 pots of stop 55's fresh run (development data, against the simulator's noise-free curves,
+what is left after a 5 mm running mean: what neither Df nor the deformation tables take out)
+the old rule's curves were 0.3-10 um rms off, 2-83 um at worst; cross-validated ones 0.2-5 um,
+1-40 um (docs/robustness.md, stop 58).
+
+`bias_z` (the largest bin's mean residual in standard errors, against what noise reaches) is kept
+in `tried` and in the reason: a chosen curve with a local bias beyond the noise says so.
 """
 
 import math
 from dataclasses import dataclass, field
 
+import numpy as np
+
+from host.fitting.cross_validation import cv_rms
 from host.fitting.models import fit_model
 
 BCM_DEGREES = (1, 2, 3)  # what firmware/bcm_fixed.bcm3 can evaluate (after degree elevation)
-DEFAULT_BUDGET = 32  # numbers a pot curve may store: a table of up to 17 knots, what a knee-shaped pot needs
-DEFAULT_TOLERANCE = 0.10
+TABLE_KNOTS = (2, 3, 5, 9, 13, 17, 21, 25, 29, 33)  # the tables tried; the firmware takes any length
+DEFAULT_BUDGET = 64  # numbers a pot curve may store: a table of up to 33 knots
+NEAR_BEST = 1.005  # a candidate this close to the lowest cross-validated error is as good
+PRUNE = 1.10  # candidates whose RMS on the sweep is further above the best one's are not cross-validated
 BIAS_BINS = 60  # about 1 mm each over a 60 mm stroke
 BIAS_ALPHA = 0.03  # chance that pure noise fails the bias check somewhere in its BIAS_BINS bins
-PLATEAU = 0.02  # a candidate this close to the best RMS is as good
 BIAS_MIN_SAMPLES = 10  # bins with fewer samples are not judged
 
 
@@ -36,16 +49,13 @@ BIAS_MIN_SAMPLES = 10  # bins with fewer samples are not judged
 class Selection:
     result: object  # the chosen FitResult
     reason: str  # one sentence a person can read
-    tried: list = field(default_factory=list)  # dicts: model, order, n_params, rms (in the order fitted)
+    tried: list = field(default_factory=list)  # dicts: model, order, n_params, rms, cv_rms (None: not scored), bias_z
 
 
 def candidates(budget=DEFAULT_BUDGET):
     """(n_params, model, order) the firmware can evaluate, cheapest first, within the budget."""
     out = [(2 * n + 1, "bcm", n) for n in BCM_DEGREES]
-    k = 2
-    while 2 * k - 2 <= budget:  # pwl stores interior knot positions and every knot value
-        out.append((2 * k - 2, "pwl", k))
-        k += 1
+    out += [(2 * k - 2, "pwl", k) for k in TABLE_KNOTS]  # a table stores interior knot positions and every knot value
     return sorted((c for c in out if c[0] <= budget), key=lambda c: (c[0], c[1] != "bcm"))
 
 
@@ -54,7 +64,6 @@ def bias_z(result, x, y, bins=BIAS_BINS):
     the bin's own scatter: near a pot's flat end one code spans several times more travel, so
     the noise in mm is larger there than the sweep's floor says), as a fraction of the Student-t
     quantile the noise alone reaches at BIAS_ALPHA over all bins: above 1, a local bias."""
-    import numpy as np
     from scipy.stats import t
 
     x = np.asarray(x, dtype=float)
@@ -75,50 +84,47 @@ def bias_z(result, x, y, bins=BIAS_BINS):
     return float(np.max(np.abs(mean) / se / critical))
 
 
-def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, tolerance=DEFAULT_TOLERANCE, n_excluded=0, progress=None):
-    """Fit candidates cheapest first; returns a Selection (see the module docstring for the rule)."""
+def select_model(x, y, noise=None, budget=DEFAULT_BUDGET, n_excluded=0, progress=None):
+    """Fit the candidates, cross-validate the close ones; returns a Selection (see the module
+    docstring for the rule). `noise` (the sweep's floor, when known) only enters the reason."""
     cands = candidates(budget)
     if not cands:
         raise ValueError("no firmware model fits within a budget of %d parameters" % budget)
-    target = None if not noise else (1.0 + tolerance) * noise
+    x = np.asarray(x, dtype=float)
+    y = np.asarray(y, dtype=float)
     tried, fits = [], []
     for n_params, model, order in cands:
         if progress:
-            progress("auto: trying %s order %d (%d parameters)" % (model, order, n_params))
+            progress("auto: fitting %s order %d (%d parameters)" % (model, order, n_params))
         r = fit_model(model, x, y, order, n_excluded=n_excluded)
         fits.append(r)
-        z = bias_z(r, x, y) if noise and math.isfinite(r.rms) else None
-        tried.append({"model": model, "order": order, "n_params": r.n_params, "rms": r.rms, "bias_z": z})
-        if target is not None and r.rms <= target and r.monotone and z is not None and z <= 1.0:
-            reason = (
-                "%s order %d is the cheapest firmware model (%d parameters) within %.0f %% of the floor "
-                "(rms %.4g vs floor %.4g) with no local bias beyond the noise (largest 1/%d-range bin mean "
-                "%.2f of what noise reaches)" % (model, order, r.n_params, 100 * tolerance, r.rms, noise, BIAS_BINS, z)
-            )
-            return Selection(r, reason, tried)
-    usable = [r for r in fits if r.monotone] or fits
-    best = min(usable, key=lambda r: r.rms)
-    # where the floor is not reached (it underestimates a sweep whose noise varies along the
-    # curve), the cheapest candidate within PLATEAU of the best and without a local bias: the
-    # extra knots of the best one only follow noise
-    z_of = {id(r): t["bias_z"] for r, t in zip(fits, tried)}
-    plateau = [r for r in usable if r.rms <= (1.0 + PLATEAU) * best.rms and (z_of[id(r)] or 0.0) <= 1.0]
-    if plateau:
-        best = plateau[0]
-    if target is None:
-        why = "the noise floor is unknown"
-    else:
-        why = ("no model within %d parameters got within %.0f %% of the floor %.4g without a local bias beyond "
-               "the noise" % (budget, 100 * tolerance, noise))
-    reason = "%s, so the cheapest within %.0f %% of the most accurate was chosen: %s order %d (%d parameters, rms %.4g%s)" % (
-        why,
-        100 * PLATEAU,
-        best.model,
-        best.order,
-        best.n_params,
-        best.rms,
-        "" if not noise else ", %.2fx the floor" % (best.rms / noise),
-    )
-    if (z_of[id(best)] or 0.0) > 1.0:
-        reason += "; it keeps a local bias beyond the noise (largest bin mean %.1fx what noise reaches)" % z_of[id(best)]
-    return Selection(best, reason, tried)
+        tried.append({"model": model, "order": order, "n_params": r.n_params, "rms": r.rms, "cv_rms": None,
+                      "bias_z": bias_z(r, x, y) if math.isfinite(r.rms) else None})
+    usable = [i for i, r in enumerate(fits) if r.monotone and math.isfinite(r.rms)] or list(range(len(fits)))
+    best_rms = min(fits[i].rms for i in usable)
+    for i in usable:
+        if fits[i].rms <= PRUNE * best_rms:
+            t = tried[i]
+            if progress:
+                progress("auto: cross-validating %s order %d" % (t["model"], t["order"]))
+            try:
+                t["cv_rms"] = cv_rms(len(x), lambda train, t=t: fit_model(t["model"], x[train], y[train], t["order"]),
+                                     lambda f, test: y[test] - f(x[test]))
+            except ValueError:  # a fold too thin for this many knots: not scored
+                pass
+    scored = [i for i in usable if tried[i]["cv_rms"] is not None and math.isfinite(tried[i]["cv_rms"])]
+    if not scored:  # too few samples to hold any out: the most accurate on the sweep
+        i = min(usable, key=lambda j: fits[j].rms)
+        return Selection(fits[i], "%s order %d: the most accurate on the sweep (none could be cross-validated)"
+                         % (tried[i]["model"], tried[i]["order"]), tried)
+    lowest = min(tried[i]["cv_rms"] for i in scored)
+    i = min((j for j in scored if tried[j]["cv_rms"] <= NEAR_BEST * lowest), key=lambda j: cands[j][0])
+    t = tried[i]
+    reason = ("%s order %d (%d parameters) is the cheapest firmware model within %.1f %% of the lowest cross-validated "
+              "error (%.4g against %.4g; rms %.4g%s)" % (
+                  t["model"], t["order"], t["n_params"], 100 * (NEAR_BEST - 1), t["cv_rms"], lowest, t["rms"],
+                  "" if not noise else ", %.2fx the sweep's noise floor" % (t["rms"] / noise)))
+    if (t["bias_z"] or 0.0) > 1.0:
+        reason += "; it keeps a local bias beyond the noise (largest 1/%d-range bin mean %.1fx what noise reaches)" % (
+            BIAS_BINS, t["bias_z"])
+    return Selection(fits[i], reason, tried)

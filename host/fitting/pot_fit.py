@@ -3,7 +3,7 @@ whether the fit may be written as a calibration.
 
 `fit_sweep` is what `host fit`, `host demo` and the guided pots step run: a named model at an
 order (DEFAULT_ORDER when none is given), or `auto`, the cheapest curve the firmware evaluates
-that gets near the sweep's noise floor (host/fitting/model_select.py). `refusals` says why a fit
+that predicts held-out samples as well as the best one (host/fitting/model_select.py). `refusals` says why a fit
 must not become a calibration (a reference that is not a function of the reading, a curve that
 is not monotone).
 """

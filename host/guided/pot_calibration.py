@@ -4,8 +4,8 @@ For each pot the rig mounts the reference in parallel with it; the actuator swee
 backward at a low open-loop duty while the firmware logs the pot's code and the reference's code
 (`--reference adc`), or the person types dial-gauge readings at stops (`--reference manual`).
 The sweep is checked (host/guided/checks.py), fitted (by default `auto`: the cheapest curve the
-firmware evaluates, BCM-3 or a free-knot piecewise-linear table, that gets within 10 % of the
-sweep's noise floor, within a budget of stored numbers; `--model bcm --order 3` is the paper's),
+firmware evaluates, BCM-3 or a free-knot piecewise-linear table, within 0.5 % of the lowest
+cross-validated error, within a budget of stored numbers; `--model bcm --order 3` is the paper's),
 exported to fixed point and returned as the pot1/pot2 sections.
 """
 

@@ -53,8 +53,8 @@ def test_plot_writes_a_png(tmp_path, capsys):
 
 def test_auto_reports_a_reason(capsys):
     out = _json(capsys, EXAMPLE, "--model", "auto")
-    assert out["model"] in ("bcm", "pwl") and out["n_params"] <= 12
-    assert "floor" in out["auto_reason"]
+    assert out["model"] in ("bcm", "pwl") and out["n_params"] <= 64
+    assert "cross-validated" in out["auto_reason"] and "floor" in out["auto_reason"]
 
 
 def test_without_model_fit_chooses_as_calibrate_does(capsys):
