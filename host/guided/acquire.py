@@ -23,6 +23,7 @@ from host.link.board_time import NO_DATA_S
 COL = {name: i for i, name in enumerate(P.FIELDS)}
 _T_COL = COL["t_us"]
 STREAM_HZ = 200
+SWEEP_HZ = 1000  # the sweeps that are fitted take every step of a 1 kHz loop: 5x the samples, in the same time
 STALL_S = 0.4  # no pot moved more than STALL_CODES for this long: at the end stop
 STALL_CODES = 10
 
@@ -47,11 +48,20 @@ def collect(client, seconds, until=None, hz=STREAM_HZ):
     return np.concatenate(chunks) if chunks else np.zeros((0, P.RECORD_WORDS), dtype=np.int32)
 
 
+def _recent(records, seconds):
+    """The records of the last `seconds` of board time (their t_us, which wraps)."""
+    t = records[:, COL["t_us"]].astype(np.int64)
+    return records[(t[-1] - t) % P.T_US_WRAP <= int(seconds * 1e6)]
+
+
 def _stalled(records, seconds, hz=STREAM_HZ):
-    n = int(STALL_S * hz)
-    if seconds < STALL_S + 0.3 or len(records) < n:
+    """Whether no pot moved more than STALL_CODES over the last STALL_S of board time (judged by
+    the records' own times: a board whose loop is slower than the rate asked streams fewer)."""
+    if seconds < STALL_S + 0.3 or len(records) < 2:
         return False
-    tail = records[-n:]
+    tail = _recent(records, STALL_S)
+    if len(tail) == len(records) or len(tail) < 0.5 * STALL_S * min(hz, STREAM_HZ):
+        return False
     return all(np.ptp(tail[:, COL[c]]) <= STALL_CODES for c in ("raw1", "raw2"))
 
 
@@ -94,7 +104,7 @@ def _limits_opened(status):
     return all(name in (status.get("params_temporary") or []) for name in OPEN_STROKE)
 
 
-def drive_to_stop(client, duty, max_s=20.0):
+def drive_to_stop(client, duty, max_s=20.0, hz=STREAM_HZ):
     """Open loop at `duty` until the pots stop moving (an end stop); motor off; the records (of
     every try). Inside open_stroke, as every caller is.
 
@@ -114,7 +124,7 @@ def drive_to_stop(client, duty, max_s=20.0):
         client.call("mode", "open_loop")
         client.call("target", int(duty))
         try:
-            parts.append(collect(client, max_s, until=_stalled))
+            parts.append(collect(client, max_s, until=lambda records, seconds: _stalled(records, seconds, hz), hz=hz))
         finally:
             client.call("stop")
         if not host_went_silent(parts[-1]) and "host_timeout" not in client.call("status")["faults"]:
@@ -134,23 +144,24 @@ def moving_part(records, column):
     return records[idx[0] : idx[-1] + 1] if idx.size else records[:0]
 
 
-def at_stop(records, hz=STREAM_HZ):
+def at_stop(records):
     """The records of the stall that ended a drive_to_stop (the actuator still at an end stop)."""
-    return records[-int(STALL_S * hz):]
+    return _recent(records, STALL_S) if len(records) else records
 
 
-def sweep(client, duty, say=None, stops=None):
+def sweep(client, duty, say=None, stops=None, hz=STREAM_HZ):
     """To the low stop fast, then a slow forward and a slow backward run: (records, direction).
     With a dict `stops`, its "low" and "high" get the records standing still at each end stop
-    (the low one from the end of the backward run, which arrives as slowly as the forward one)."""
+    (the low one from the end of the backward run, which arrives as slowly as the forward one).
+    The slow runs stream at `hz` (SWEEP_HZ where a fit wants every sample the loop makes)."""
     with open_stroke(client):
         drive_to_stop(client, -min(max(3 * abs(duty), 2500), DUTY_MAX))  # a hard sweep's fast leg: full duty at most
         if say:
             say("  sweeping forward (duty %+d)" % abs(duty))
-        fwd_all = drive_to_stop(client, abs(duty))
+        fwd_all = drive_to_stop(client, abs(duty), hz=hz)
         if say:
             say("  sweeping backward (duty %+d)" % -abs(duty))
-        back_all = drive_to_stop(client, -abs(duty))
+        back_all = drive_to_stop(client, -abs(duty), hz=hz)
     fwd, back = moving_part(fwd_all, "raw2"), moving_part(back_all, "raw2")
     if stops is not None:
         stops["high"], stops["low"] = at_stop(fwd_all), at_stop(back_all)

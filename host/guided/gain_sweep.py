@@ -116,7 +116,7 @@ def _sweep(session, prompter, opts, min_mm):
     """A weighted sweep both ways that covers `min_mm` of D2, at opts.duty or harder."""
     duty = opts.duty
     while True:
-        records, direction = acquire.sweep(session.client, duty, prompter.say)
+        records, direction = acquire.sweep(session.client, duty, prompter.say, hz=acquire.SWEEP_HZ)
         d2 = records[:, acquire.COL["d2_um"]] / 1000.0 if len(records) else np.zeros(0)
         covered = [float(np.ptp(d2[direction == s])) if np.any(direction == s) else 0.0 for s in (1, -1)]
         if min(covered) >= min_mm:
@@ -147,7 +147,7 @@ def calibrate_gain(session, rig, prompter, opts, calibration_path):
     w = weight_n(opts)
     prompter.say("[gain] D1* - D2 along the stroke at no load, then under a steady weight")
     rig.no_load()
-    records, direction = acquire.sweep(session.client, opts.duty, prompter.say)
+    records, direction = acquire.sweep(session.client, opts.duty, prompter.say, hz=acquire.SWEEP_HZ)
     noload = _samples(records, direction)
     rig.hang_weight(w)
     lo, hi = opts.stroke

@@ -31,7 +31,7 @@ def adc_sweep(session, rig, pot, duty, ref_scale, say):
     simulated pots, where the moving part of the sweep ends a few codes short of them)."""
     rig.mount_reference(pot)
     stops = {}
-    records, direction = acquire.sweep(session.client, duty, say, stops=stops)
+    records, direction = acquire.sweep(session.client, duty, say, stops=stops, hz=acquire.SWEEP_HZ)
     records = np.concatenate([records, stops["high"], stops["low"]])
     direction = np.concatenate([direction, np.ones(len(stops["high"])), -np.ones(len(stops["low"]))])
     raw = records[:, acquire.COL[RAW[pot]]].astype(float)

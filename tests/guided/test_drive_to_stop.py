@@ -90,3 +90,20 @@ def test_a_hard_sweep_runs_its_fast_leg_at_full_duty_at_most(model_calibration):
     with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as client:
         records, direction = acquire.sweep(client, 5000)
     assert (direction > 0).sum() > 20 and (direction < 0).sum() > 20
+
+
+def test_a_fitted_sweep_takes_every_step_and_still_finds_both_stops(model_calibration):
+    """The pots and gain steps sweep at SWEEP_HZ (1 kHz: every step of the loop) for five times the
+    samples of the 200 Hz stream; the stall that ends each run, and the records standing still at
+    each stop, are judged by the records' own times, so they are the same 0.4 s at either rate."""
+    with VirtualBoard(calibration=model_calibration) as vb, BoardClient(vb.path) as client:
+        slow, slow_stops = {}, {}
+        plain = acquire.sweep(client, 1500, stops=slow_stops)[0]
+        fast = acquire.sweep(client, 1500, stops=slow, hz=acquire.SWEEP_HZ)[0]
+    assert len(fast) > 3.5 * len(plain), (len(fast), len(plain))
+    for stops in (slow_stops, slow):
+        for end in ("low", "high"):
+            t = stops[end][:, acquire.COL["t_us"]]
+            assert 0.35e6 <= (t[-1] - t[0]) <= 0.41e6, (end, t[-1] - t[0])
+            assert np.ptp(stops[end][:, acquire.COL["raw2"]]) <= acquire.STALL_CODES
+    assert abs(np.median(slow["high"][:, acquire.COL["raw2"]]) - np.median(slow_stops["high"][:, acquire.COL["raw2"]])) <= 3
