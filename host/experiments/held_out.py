@@ -8,11 +8,13 @@ force step's closed-loop trim held the loop against the gauge (host/guided/frict
 on the board:
 
 - Df: a second no-load sweep at another duty (other samples, other speeds, later, fresh noise).
-  The firmware's own deformation reading D1* - D2 is, at no load, the Df it did not take out plus
+  The paper's Df correction leaves D1* - D2, which is, at no load, the Df it did not take out plus
   the deflection the block's friction puts into the spring while it slides, of opposite sign in
   the two directions. The bin means over 1 mm of D1 are taken for each direction apart and the
   two averaged, so the deflection cancels and the assembly error stays; the peak |mean| is the
-  held-out Df (end-stop samples left out, as the fit does).
+  held-out Df (end-stop samples left out, as the fit does). The firmware's own deformation, with the
+  gain step's offset table taken off too (`defl_um`), is binned the same way and reported beside
+  it (peak_deformation_mm): what a force estimate at no load starts from.
 - positions: POSITIONS drawn uniformly over the soft stroke limits (one in each sixth of it), each
   at least 1 mm from the paper's targets and from each other, held and measured by the reference as Fig. 7's are.
 - forces: on each gauge side, LOADING magnitudes drawn from 15-90 % of the range the force step
@@ -126,7 +128,11 @@ def df_validation(session, rig, duty, say=print):
     keep = ~near_the_stops(d2, STOP_ZONE_UM)
     x, resid, direction = d1[keep] / 1000.0, (d1 - d2)[keep] / 1000.0, direction[keep]
     peak, peak_pooled, deflection = direction_balanced_peak(x, resid, direction)
+    # the deformation the firmware reads at no load: D1* - D2 less the gain step's offset table, times its gain
+    defl = records[:, acquire.COL["defl_um"]].astype(float)[keep] / 1000.0
+    peak_firmware = direction_balanced_peak(x, defl, direction)[0]
     return {"peak_binned_mm": peak, "peak_pooled_mm": peak_pooled, "friction_deflection_mm": deflection,
+            "peak_deformation_mm": peak_firmware,
             "peak_single_mm": float(np.max(np.abs(resid))), "rms_mm": float(np.sqrt(np.mean(resid ** 2))),
             "n_samples": int(len(x)), "duty": duty}
 

@@ -350,10 +350,11 @@ def _held_out_section(add, r):
         add("**Df on a validation sweep** (no load, duty %s, the calibration on the board; the firmware's own D1* - D2 "
             "in 1 mm bins of D1, each direction's mean apart, the two averaged): peak **%s mm**; both directions pooled %s "
             "mm; single samples %s mm, rms %s mm, %s samples; the block's friction deflected the spring by %s mm either "
-            "way. The fit's own residual was %s mm." % (
+            "way. The fit's own residual was %s mm. The firmware's deformation at no load (D1* - D2 less the gain step's "
+            "offset table, times its gain; binned the same way): peak %s mm." % (
                 df.get("duty"), _f(df.get("peak_binned_mm")), _f(df.get("peak_pooled_mm")), _f(df.get("peak_single_mm")),
                 _f(df.get("rms_mm")), df.get("n_samples"), _f(df.get("friction_deflection_mm")),
-                _f(r["fig5"].get("peak_after_binned_mm"))))
+                _f(r["fig5"].get("peak_after_binned_mm")), _f(df.get("peak_deformation_mm"))))
         add("")
     pos = ho.get("positions") or []
     if pos:

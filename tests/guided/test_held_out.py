@@ -58,3 +58,30 @@ def test_the_force_steps_elsewhere_hook_the_gauge_at_mid_stroke_or_a_quarter_str
     for stroke, anchor in (((0.0, 60.0), 45.0), ((0.0, 60.0), 30.0), ((10.0, 55.0), 34.0)):
         away = held_out.away_anchor_mm(stroke, anchor)
         assert abs(away - anchor) >= held_out.MIN_AWAY_MM and stroke[0] < away < stroke[1]
+
+
+def test_the_validation_sweep_reports_the_firmware_deformation_beside_d1_star_less_d2(monkeypatch):
+    """The firmware takes the gain step's offset table off D1* - D2 (telemetry defl_um); the held-out
+    Df is the paper's D1* - D2, and the deformation the force estimate starts from is reported
+    beside it, each from its own column."""
+    from host.guided import acquire
+
+    x = np.concatenate([np.linspace(2, 58, 2000), np.linspace(58, 2, 2000)])
+    direction = np.concatenate([np.ones(2000), -np.ones(2000)])
+    left = 0.03 * np.sin(x / 7.0)  # what Df left (mm); the offset table takes all but 0.005 of it
+    records = np.zeros((len(x), len(acquire.COL)), dtype=np.int64)
+    records[:, acquire.COL["d2_um"]] = np.round(1000 * x)
+    records[:, acquire.COL["d1_um"]] = np.round(1000 * (x + left))
+    records[:, acquire.COL["defl_um"]] = np.round(1000 * 0.005 * np.cos(x / 5.0))
+    monkeypatch.setattr(acquire, "sweep", lambda client, duty, say=None: (records, direction))
+
+    class Rig:
+        def no_load(self):
+            pass
+
+    class Session:
+        client = None
+
+    df = held_out.df_validation(Session(), Rig(), 1200, say=lambda *a: None)
+    assert abs(df["peak_binned_mm"] - 0.03) < 0.003
+    assert abs(df["peak_deformation_mm"] - 0.005) < 0.0015
