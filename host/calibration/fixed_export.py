@@ -127,6 +127,24 @@ def export_bcm3(coefficients, adc_bits, max_error_um=None, unit_um=UM_PER_MM):
 
 
 
+def _merge_close_knots(X, ys, same_um=1.0):
+    """Knots that land on the same table input with values within `same_um` become one (a
+    free-knot fit of 29-33 knots may put two at one code, or within 1/16 code, with the same value:
+    seen at a pot's flat end and mid-curve). Refused, the fit fell back to a code-by-code table
+    many times the size, past the 64 KiB a board reads. Knots at one input with different values
+    (a step) are left for the checks to refuse."""
+    outx, outy, count = [X[0]], [float(ys[0])], [1]
+    for x, y in zip(X[1:], ys[1:]):
+        if x == outx[-1] and abs(float(y) - outy[-1]) <= same_um:
+            count[-1] += 1
+            outy[-1] += (float(y) - outy[-1]) / count[-1]
+        else:
+            outx.append(x)
+            outy.append(float(y))
+            count.append(1)
+    return outx, np.asarray(outy)
+
+
 def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM, reference=None):
     """k for `firmware.pwl_fixed.pwl` from knots (x in ADC codes increasing, y in mm).
 
@@ -141,12 +159,15 @@ def export_pwl(knots_x, knots_y, adc_bits, max_error_um=None, unit_um=UM_PER_MM,
         raise ValueError("a table needs at least 2 knots with as many values as codes")
     if not (np.all(np.isfinite(xs)) and np.all(np.isfinite(ys))):
         raise ValueError("table knots must be finite")
-    if np.any(np.diff(xs) <= 0):
+    if np.any(np.diff(xs) < 0):
         raise ValueError("knot codes must be strictly increasing")
     X = [round(v * 2**s) for v in xs]
+    X, merged = _merge_close_knots(X, ys)  # (knots at the same code among them)
+    if any(b == a for a, b in zip(xs, xs[1:])) and len(X) == len(xs):
+        raise ValueError("knot codes must be strictly increasing")
     if X[0] < 0 or X[-1] > 2**16 or any(b <= a for a, b in zip(X, X[1:])):
         raise ValueError("knot codes must be distinct within 1/%d code and inside the ADC range" % 2**s)
-    Y = [round(v) for v in ys]
+    Y = [round(v) for v in merged]
     if max(abs(v) for v in Y) >= 2**29:
         raise ValueError("table values exceed 2**29 um")
     # split segments whose interpolation product could leave 31 bits

@@ -182,3 +182,18 @@ def test_a_pot_curve_whose_integer_form_falls_is_never_exported():
         export_pot(falling, 12, rising=True)
     with pytest.raises(UserError, match="cannot export"):
         pot_section(falling, 12)
+
+
+def test_knots_a_fit_put_on_one_code_with_one_value_are_merged_not_refused():
+    """A free-knot fit of 29-33 knots put two knots at one code (and two within 1/16 code) with the
+    same value on real sweeps (stop 58); refused, the pot curve fell back to a code-by-code table
+    of about 50 KB, and the calibration file passed the 64 KiB a board reads. Merged, the table is
+    the same curve and stays small; knots at one code with different values are still refused."""
+    xs = [0.0, 1000.0, 2000.0, 2000.0, 3000.0, 4094.97, 4095.0]
+    ys = [0.0, 15.0, 30.0, 30.0, 45.0, 60.0, 60.0]
+    k = export_pwl(xs, ys, 12)
+    assert k[0] <= 8  # 5 knots, and the long segments split
+    got = np.array([pwl(int(c), k) for c in CODES])
+    assert np.max(np.abs(got - np.interp(CODES, [0, 1000, 2000, 3000, 4095], [0, 15000, 30000, 45000, 60000]))) <= 1
+    with pytest.raises(ValueError, match="increasing"):
+        export_pwl([0, 10, 10, 20], [0, 1, 2, 3], 12)
