@@ -41,19 +41,23 @@ class FlashRig:
             time.sleep(RIG_APPLY_S)
         return state
 
-    def gauge(self, max_age_s=1.0, beat=None, timeout_s=10.0):
-        """The force gauge's display, {"force_n", "t_s"}, once the rig has refreshed it within
-        `max_age_s`. `beat` (e.g. client.heartbeat_if_due) is called while waiting: the motor may
-        be running meanwhile, and the firmware stops it after 1 s without the host."""
+    def gauge(self, beat=None, timeout_s=10.0):
+        """The force gauge's display, {"force_n", "t_s"}, as the rig rewrites it after this call
+        began: the host reads the gauge once the telemetry says a hold is over, and a display from
+        before (the rig rewrites it every ~100 ms of its main loop, later on a busy computer) may
+        show the force on its way there. `beat` (e.g. client.heartbeat_if_due) is called while
+        waiting: the motor may be running meanwhile, and the firmware stops it after 1 s without
+        the host."""
         path = self.root / "gauge.json"
+        asked_ns = time.time_ns()
         deadline = time.monotonic() + timeout_s
         while time.monotonic() < deadline:
             if beat is not None:
                 beat()
             try:
-                if time.time() - path.stat().st_mtime <= max_age_s:
+                if path.stat().st_mtime_ns > asked_ns:
                     return json.loads(path.read_text())
             except (OSError, ValueError, KeyError):
                 pass
-            time.sleep(0.05)
+            time.sleep(0.02)
         raise UserError("the virtual rig shows no gauge reading (is the gauge hooked?)")

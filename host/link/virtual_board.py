@@ -224,9 +224,9 @@ class VirtualBoard:
         self._rig.mount({"load": dict(load)}, wait=False)
         self.load = dict(load)
 
-    def gauge(self, max_age_s=1.0, beat=None, timeout_s=10.0):
-        """The force gauge's display, {"force_n", "t_s"}; see FlashRig.gauge."""
-        return self._rig.gauge(max_age_s, beat, timeout_s)
+    def gauge(self, beat=None, timeout_s=10.0):
+        """The force gauge's display, {"force_n", "t_s"}, rewritten after the call; see FlashRig.gauge."""
+        return self._rig.gauge(beat, timeout_s)
 
     def __enter__(self):
         self.start()

@@ -59,20 +59,6 @@ def test_closed_loop_move_on_the_flashed_board(flashed, capsys):
         assert client.call("status")["mode"] == "idle"  # the move ends with the motor off
 
 
-def gauge_display(board, after, timeout=30.0):
-    """The simulated gauge's display (N), as rewritten by the rig after wall time `after`."""
-    path = board.root / "gauge.json"
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        try:
-            if path.stat().st_mtime > after:
-                return float(json.loads(path.read_text())["force_n"])
-        except (OSError, ValueError, KeyError):
-            pass
-        time.sleep(0.02)
-    raise AssertionError("the rig did not refresh gauge.json")
-
-
 def test_force_on_the_flashed_board_pulls_the_hooked_gauge_to_the_target(flashed, capsys):
     # As on the paper's bench: move the block above the anchor, hook the gauge (the fibre hangs
     # slack: tare), then pull -5 N with the force loop. The gauge must then show 5 N of tension
@@ -86,16 +72,14 @@ def test_force_on_the_flashed_board_pulls_the_hooked_gauge_to_the_target(flashed
     assert cli.main(["move", "--port", board.path, "--to", "45", "--timeout", "20"]) == 0
     try:
         board.set_load({"kind": "gauge", "anchor_mm": 43.0})
-        hooked = time.time()
-        time.sleep(0.3)  # the rig polls every 100 ms
-        tare = gauge_display(board, hooked + 0.2)
+        time.sleep(0.3)  # the rig polls rig.json every 100 ms
+        tare = board.gauge(timeout_s=30)["force_n"]  # a display rewritten after the hook
         assert abs(tare) < 0.6  # slack: only the gauge's zero drift and noise
         capsys.readouterr()
         assert cli.main(["force", "--port", board.path, "--target", "-5", "--hold"]) == 0
-        done = time.time()
         out = capsys.readouterr().out
         assert out.startswith("reached at ") and abs(float(out.split()[2]) + 5.0) <= 0.1
-        tension = gauge_display(board, done) - tare  # force mode still holds (--hold)
+        tension = board.gauge(timeout_s=30)["force_n"] - tare  # force mode still holds (--hold)
         print("gauge tension", tension, "tare", tare)
         assert abs(tension - 5.0) <= 2 * h + 0.1, (tension, tare)
     finally:
