@@ -238,12 +238,12 @@ def mean(records, column):
     return float(np.mean(records[:, COL[column]])) if len(records) else float("nan")
 
 
-def collect_pulse(client, duty, seconds):
-    """A short open-loop push (manual stops); motor off after; the records."""
+def collect_pulse(client, duty, seconds, hz=STREAM_HZ):
+    """A short open-loop push (manual stops); motor off after; the records (at `hz`)."""
     client.call("mode", "open_loop")
     client.call("target", int(duty))
     try:
-        return collect(client, seconds)
+        return collect(client, seconds, hz=hz)
     finally:
         client.call("stop")
         time.sleep(0.1)

@@ -33,6 +33,7 @@ FREE_DUTY = 2000  # a gentle free push: ~17 mm/s on the simulated actuator
 FREE_S = 0.15
 HOLD_DUTY = 6500  # against the end stop: past the spring's preload, a few tens of N at most
 HOLD_S = 0.3
+MOVED_MEAN_CODES = 2.0  # a mean over a push that moved less than this did not move
 REST_S = 0.4
 NOISY_LSB = 8.0  # rest noise above this many codes (std) is worth a look at the wiring
 # Rest noise (std of the board's averaged reading) above QUIET_CODES * 1.25 costs force control:
@@ -255,20 +256,27 @@ def _free_push(w, session, prompter, opts, rest):
 
 def _end_stop_push(w, session, prompter, toward_zero):
     """Which pot is which: at the 0 mm end stop the block cannot follow the nut, so a firm push
-    compresses the spring past its preload and only the nut's pot moves."""
+    compresses the spring further than a gentle one and only the nut's pot moves between the two.
+    Both are pushes: with the motor off the compressed spring drives a back-drivable screw back and
+    lifts the block off the stop (0.26 mm on a drawn actuator), and a firm push from there moves
+    both pots."""
     client = session.client
     prompter.say("  the block now runs slowly to its 0 mm end stop and is pushed against it for %.1f s" % HOLD_S)
     with acquire.open_stroke(client):
         acquire.drive_to_stop(client, toward_zero * FREE_DUTY)
-        before = acquire.collect(client, 0.2)
-        push = acquire.collect_pulse(client, toward_zero * HOLD_DUTY, HOLD_S)
+        # every step's record (SWEEP_HZ): the means below need many samples
+        gentle = acquire.collect_pulse(client, toward_zero * FREE_DUTY, HOLD_S, hz=acquire.SWEEP_HZ)
+        firm = acquire.collect_pulse(client, toward_zero * HOLD_DUTY, HOLD_S, hz=acquire.SWEEP_HZ)
         acquire.collect_pulse(client, -toward_zero * FREE_DUTY, 1.0)  # back off toward mid-stroke
-    late = push[2 * len(push) // 3:]
-    d1 = abs(acquire.mean(late, "raw1") - acquire.mean(before, "raw1"))
-    d2 = abs(acquire.mean(late, "raw2") - acquire.mean(before, "raw2"))
-    w.lines.append("push against the 0 mm end stop, duty %+d for %.2f s: pot 1 moved %.0f codes, pot 2 %.0f codes" % (
-        toward_zero * HOLD_DUTY, HOLD_S, d1, d2))
-    if max(d1, d2) < max(6.0, 6 * max(w.noise.values())):
+    gentle, firm = gentle[2 * len(gentle) // 3:], firm[2 * len(firm) // 3:]  # pressed against the stop by then
+    d1 = abs(acquire.mean(firm, "raw1") - acquire.mean(gentle, "raw1"))
+    d2 = abs(acquire.mean(firm, "raw2") - acquire.mean(gentle, "raw2"))
+    w.lines.append("push against the 0 mm end stop, duty %+d then %+d for %.2f s each: pot 1 moved %.1f codes, pot 2 %.1f "
+                   "codes" % (toward_zero * FREE_DUTY, toward_zero * HOLD_DUTY, HOLD_S, d1, d2))
+    # Means of ~100 samples: their noise is the rest noise over the root of the count (the end
+    # stop may sit in the pots' flat end zones, where 0.5 mm of nut is a few codes)
+    n = max(1, min(len(gentle), len(firm)))
+    if max(d1, d2) < max(MOVED_MEAN_CODES, 6 * max(w.noise.values()) * (2.0 / n) ** 0.5):
         w.problems.append("pushed against the end stop, neither pot moved: the spring's preload is more than the "
                           "push; pot 1/pot 2 assignment not checked")
     elif d1 >= 3 * d2:
@@ -276,7 +284,7 @@ def _end_stop_push(w, session, prompter, toward_zero):
     elif d2 >= 3 * d1:
         w.swapped = True
     else:
-        w.problems.append("pushed against the end stop, both pots moved (%.0f and %.0f codes): is the end stop on the "
+        w.problems.append("pushed against the end stop, both pots moved (%.1f and %.1f codes): is the end stop on the "
                           "block? pot 1/pot 2 assignment not checked" % (d1, d2))
 
 

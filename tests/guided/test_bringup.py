@@ -4,6 +4,7 @@ with the board-file setting that fixes it, and with --fix the corrected board fi
 the checks pass on it. The real unix port, firmware, pty, mpremote and the physical model."""
 
 import json
+import re
 
 import pytest
 
@@ -38,6 +39,27 @@ def test_a_well_wired_actuator_passes_and_a_full_run_then_skips_bringup(tmp_path
     from host.guided.flow import bringup_done
 
     assert bringup_done(tmp_path / "cal.json", "sim")["ok"]
+
+
+def test_the_pot_assignment_holds_where_a_back_driven_screw_lifts_the_block_off_the_stop(tmp_path, capsys):
+    # Drawn actuator 202611291101 (found by stop 59's fresh run): with the motor off, its
+    # compressed spring drives the screw back and lifts the block 0.26 mm off the 0 mm stop, which
+    # sits in the pots' flat end zones. Judged from there, a firm push moved both pots (11 and 6
+    # codes) and bringup refused a well-wired actuator; judged against a gentle push that keeps
+    # the block on the stop, only the nut's pot moves.
+    from testkit.drawn_actuators import draw
+
+    actuator, volts, _ = draw(SIM["actuator"], 202611291101)
+    board = dict(SIM, actuator=actuator, supply_volts=round(volts, 2), stroke_mm=list(actuator["block"]["stroke_mm"]))
+    board.pop("sources", None)
+    path = tmp_path / "actuator.json"
+    path.write_text(json.dumps(board, indent=1))
+    code, record = bringup(tmp_path, path)
+    out = capsys.readouterr().err
+    assert code == 0 and record["ok"] and record["problems"] == [], out
+    line = next(x for x in out.splitlines() if "push against the 0 mm end stop" in x)
+    moved1, moved2 = (float(v) for v in re.search(r"pot 1 moved ([0-9.]+) codes, pot 2 ([0-9.]+) codes", line).groups())
+    assert moved2 < 0.5 and moved1 > 3 * moved2 + 2, line  # the block stayed on the stop
 
 
 @pytest.mark.parametrize("wiring, setting, fix", [
