@@ -32,6 +32,7 @@ from host.guided.rig import reference_mm, reference_scale
 FREE_DUTY = 2000  # a gentle free push: ~17 mm/s on the simulated actuator
 FREE_S = 0.15
 HOLD_DUTY = 6500  # against the end stop: past the spring's preload, a few tens of N at most
+PRESS_DUTY = 500  # keeps the block on the end stop (a quarter of FREE_DUTY): light, so the nut has room to move
 HOLD_S = 0.3
 MOVED_MEAN_CODES = 2.0  # a mean over a push that moved less than this did not move
 REST_S = 0.4
@@ -256,23 +257,24 @@ def _free_push(w, session, prompter, opts, rest):
 
 def _end_stop_push(w, session, prompter, toward_zero):
     """Which pot is which: at the 0 mm end stop the block cannot follow the nut, so a firm push
-    compresses the spring further than a gentle one and only the nut's pot moves between the two.
+    compresses the spring further than a light one and only the nut's pot moves between the two.
     Both are pushes: with the motor off the compressed spring drives a back-drivable screw back and
     lifts the block off the stop (0.26 mm on a drawn actuator), and a firm push from there moves
-    both pots."""
+    both pots. The light push is light enough that a soft spring under a strong motor is still
+    short of its cavity wall (at duty 2000 one drawn actuator's nut already sat on it)."""
     client = session.client
     prompter.say("  the block now runs slowly to its 0 mm end stop and is pushed against it for %.1f s" % HOLD_S)
     with acquire.open_stroke(client):
         acquire.drive_to_stop(client, toward_zero * FREE_DUTY)
         # every step's record (SWEEP_HZ): the means below need many samples
-        gentle = acquire.collect_pulse(client, toward_zero * FREE_DUTY, HOLD_S, hz=acquire.SWEEP_HZ)
+        gentle = acquire.collect_pulse(client, toward_zero * PRESS_DUTY, HOLD_S, hz=acquire.SWEEP_HZ)
         firm = acquire.collect_pulse(client, toward_zero * HOLD_DUTY, HOLD_S, hz=acquire.SWEEP_HZ)
         acquire.collect_pulse(client, -toward_zero * FREE_DUTY, 1.0)  # back off toward mid-stroke
     gentle, firm = gentle[2 * len(gentle) // 3:], firm[2 * len(firm) // 3:]  # pressed against the stop by then
     d1 = abs(acquire.mean(firm, "raw1") - acquire.mean(gentle, "raw1"))
     d2 = abs(acquire.mean(firm, "raw2") - acquire.mean(gentle, "raw2"))
     w.lines.append("push against the 0 mm end stop, duty %+d then %+d for %.2f s each: pot 1 moved %.1f codes, pot 2 %.1f "
-                   "codes" % (toward_zero * FREE_DUTY, toward_zero * HOLD_DUTY, HOLD_S, d1, d2))
+                   "codes" % (toward_zero * PRESS_DUTY, toward_zero * HOLD_DUTY, HOLD_S, d1, d2))
     # Means of ~100 samples: their noise is the rest noise over the root of the count (the end
     # stop may sit in the pots' flat end zones, where 0.5 mm of nut is a few codes)
     n = max(1, min(len(gentle), len(firm)))

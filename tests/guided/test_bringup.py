@@ -41,15 +41,18 @@ def test_a_well_wired_actuator_passes_and_a_full_run_then_skips_bringup(tmp_path
     assert bringup_done(tmp_path / "cal.json", "sim")["ok"]
 
 
-def test_the_pot_assignment_holds_where_a_back_driven_screw_lifts_the_block_off_the_stop(tmp_path, capsys):
-    # Drawn actuator 202611291101 (found by stop 59's fresh run): with the motor off, its
-    # compressed spring drives the screw back and lifts the block 0.26 mm off the 0 mm stop, which
-    # sits in the pots' flat end zones. Judged from there, a firm push moved both pots (11 and 6
-    # codes) and bringup refused a well-wired actuator; judged against a gentle push that keeps
-    # the block on the stop, only the nut's pot moves.
+@pytest.mark.parametrize("seed", [202611291101, 202611282107], ids=["screw-lifts-block", "nut-on-cavity-wall"])
+def test_the_pot_assignment_holds_on_drawn_actuators_that_fooled_it(tmp_path, capsys, seed):
+    # Two drawn actuators (found by stop 59's fresh run and its check of 80 earlier draws). On
+    # 202611291101, with the motor off, the compressed spring drives the screw back and lifts the
+    # block 0.26 mm off the 0 mm stop, which sits in the pots' flat end zones: judged from there,
+    # a firm push moved both pots (11 and 6 codes) and bringup refused a well-wired actuator. On
+    # 202611282107 (a soft spring, a strong motor at 8.75 V) a hold at duty 2000 already had the
+    # nut on the cavity wall, so a firm push could not move it. Judged between a light push that
+    # keeps the block on the stop and a firm one, only the nut's pot moves on both.
     from testkit.drawn_actuators import draw
 
-    actuator, volts, _ = draw(SIM["actuator"], 202611291101)
+    actuator, volts, _ = draw(SIM["actuator"], seed)
     board = dict(SIM, actuator=actuator, supply_volts=round(volts, 2), stroke_mm=list(actuator["block"]["stroke_mm"]))
     board.pop("sources", None)
     path = tmp_path / "actuator.json"
