@@ -279,8 +279,11 @@ def _end_stop_push(w, session, prompter, toward_zero):
     # stop may sit in the pots' flat end zones, where 0.5 mm of nut is a few codes)
     n = max(1, min(len(gentle), len(firm)))
     if max(d1, d2) < max(MOVED_MEAN_CODES, 6 * max(w.noise.values()) * (2.0 / n) ** 0.5):
-        w.problems.append("pushed against the end stop, neither pot moved: the spring's preload is more than the "
-                          "push; pot 1/pot 2 assignment not checked")
+        # the motor turned in the free push above, so the spring did not give
+        w.problems.append("pushed against the end stop, neither pot moved between the light and the firm push: the "
+                          "spring did not give (the nut already at the end of its travel in the cavity, a spring too "
+                          "stiff for the motor's push at duty %d, or a screw that binds under load); pot 1/pot 2 "
+                          "assignment not checked" % HOLD_DUTY)
     elif d1 >= 3 * d2:
         w.swapped = False
     elif d2 >= 3 * d1:

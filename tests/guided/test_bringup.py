@@ -65,6 +65,20 @@ def test_the_pot_assignment_holds_on_drawn_actuators_that_fooled_it(tmp_path, ca
     assert moved2 < 0.5 and moved1 > 3 * moved2 + 2, line  # the block stayed on the stop
 
 
+def test_a_spring_that_does_not_give_at_the_end_stop_is_said_and_the_assignment_left_unchecked(tmp_path, capsys):
+    # a cavity of 0.05 mm: the light push already has the nut on the cavity wall, so the firm push at
+    # the 0 mm end stop moves neither pot and which pot is the nut's stays unknown; bringup says so
+    board = json.loads(json.dumps(SIM))
+    board["actuator"]["springs"]["cavity_mm"] = 0.05
+    path = tmp_path / "actuator.json"
+    path.write_text(json.dumps(board, indent=1))
+    code, record = bringup(tmp_path, path)
+    out = capsys.readouterr().err
+    assert code != 0 and not record["ok"], out
+    problem = next(p for p in record["problems"] if "neither pot moved" in p)
+    assert "spring did not give" in problem and "cavity" in problem and "not checked" in problem, problem
+
+
 @pytest.mark.parametrize("wiring, setting, fix", [
     ({"motor_reversed": True}, '"motor_invert": true', {"motor_invert": True}),
     ({"adc": {"pot1": "pot2", "pot2": "pot1"}}, 'swap the "pot1" and "pot2" entries of "adc_pins"',
