@@ -38,6 +38,7 @@ from firmware.calibration import (
     FORCE_RANGE_SECTION,
     GAIN_ONE,
     GAIN_SECTION,
+    MAX_BYTES,
     OFFSET_SECTION,
     CalibrationError,
     force_range_constants,
@@ -122,7 +123,12 @@ def encode_document(doc, check=True):
         check_sections(body)
     payload = _pretty(body)
     head = json.dumps({"format": FORMAT, "schema": SCHEMA, "crc32": payload_crc(payload)}, ensure_ascii=True)
-    return head[:-1] + "," + PAYLOAD_KEY + payload + "\n}\n"
+    text = head[:-1] + "," + PAYLOAD_KEY + payload + "\n}\n"
+    if check and len(text) > MAX_BYTES:  # the board would refuse the whole file at boot
+        raise UserError("the calibration would be %d bytes, more than the %d the board reads (largest sections: %s)" % (
+            len(text), MAX_BYTES, ", ".join("%s %d" % (name, size) for size, name in sorted(
+                ((len(json.dumps(v)), k) for k, v in body.items()), reverse=True)[:3])))
+    return text
 
 
 def write_calibration(path, doc):

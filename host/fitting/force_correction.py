@@ -21,6 +21,14 @@ import numpy as np
 from host.fitting.force import table_value
 
 TABLE_TOL_N = 0.002  # the table follows F0 - c this closely
+# A corrected table has at most this many knots: with its inverse each costs about 100 bytes of
+# the calibration file, which the board reads only up to firmware.calibration.MAX_BYTES. Within
+# TABLE_TOL_N, the force step's own tables and the corrected ones of the robustness runs need
+# 33-70; an F0 polynomial fitted to few levels can bend enough to need hundreds (a CI run's
+# calibration grew to 68 KB and the board refused it). Capped, such a table strays a few mN from
+# F0 - c, far inside a 2 % force target; beyond MAX_STRAY_N the correction is refused.
+MAX_TABLE_KNOTS = 128
+MAX_STRAY_N = 0.01
 SPAN_OF_RANGE = 0.9
 CORRECTION_LIMIT = (0.1, 0.3)  # an error beyond this fraction of its force and this many N is not trusted
 
@@ -80,16 +88,20 @@ def f0_correction(errors):
 def table_knots(g, d_lo, d_hi, keep=()):
     """Deformation knots (mm) over d_lo..d_hi, with `keep` (kinks: an old table's knots, where the
     correction turns): a knot is added where the line between them strays most from g until it
-    stays within TABLE_TOL_N everywhere (few knots where F0 is straight, more where it bends)."""
+    stays within TABLE_TOL_N everywhere (few knots where F0 is straight, more where it bends), or
+    MAX_TABLE_KNOTS are placed. ValueError when the line then still strays more than MAX_STRAY_N."""
     dense = np.linspace(d_lo, d_hi, 2001)
     want = g(dense)
     kx = np.union1d([d_lo, d_hi], [k for k in keep if d_lo < k < d_hi])
-    while len(kx) < len(dense):
+    while True:
         miss = np.abs(np.interp(dense, kx, g(kx)) - want)
         worst = int(np.argmax(miss))
-        if miss[worst] <= TABLE_TOL_N:
+        if miss[worst] <= TABLE_TOL_N or len(kx) >= MAX_TABLE_KNOTS:
             break
         kx = np.union1d(kx, [dense[worst]])
+    if miss[worst] > MAX_STRAY_N:
+        raise ValueError("a table of %d knots still strays %.0f mN from F0 less the error: F0 bends too much to "
+                         "tabulate" % (len(kx), 1000 * miss[worst]))
     return kx
 
 

@@ -205,7 +205,7 @@ def trimmed_sections(doc, trim):
     """The calibration sections a Trim rewrites in `doc` (a calibration document with the force
     step's sections): friction, and force and force_inverse when F0 is corrected (the identified
     F0 kept in the new section's fit, `identified`). With the lines that say what was done."""
-    from host.calibration.file import check_sections, force_table_section, friction_section
+    from host.calibration.file import encode_document, force_table_section, friction_section
     from host.guided.force_identification import D_RANGE_MM, F_RANGE_N
 
     identified = doc["friction"]
@@ -238,7 +238,7 @@ def trimmed_sections(doc, trim):
                                                 {"correction_mn": errors, "knots": len(kd), "identified": identified_f0})
         sections["force_inverse"] = force_table_section(kf, kd, F_RANGE_N, ("mN", "um"),
                                                         {"exact inverse of": "the corrected F0"})
-        check_sections(dict(doc, **sections))  # as the board will: a refused file would stop the run
+        encode_document(dict(doc, **sections))  # as the board will check it: a refused file would stop the run
     except (ValueError, UserError) as exc:
         return {"friction": sections["friction"]}, lines + ["force: F0 not corrected (%s)" % exc]
     return sections, lines + ["force: F0 corrected in closed loop (estimate - gauge common to loading and unloading, "

@@ -163,3 +163,55 @@ def test_a_table_the_board_would_refuse_is_not_written(monkeypatch):
         else:
             assert "F0 corrected" in lines[-1], lines
     assert refused > 0
+
+
+def test_a_corrected_table_is_capped_at_its_knots_and_refused_when_it_then_strays(monkeypatch):
+    """An F0 polynomial fitted to few levels can bend enough that following F0 - c within 2 mN took
+    hundreds of knots: a CI run's calibration grew to 68 KB, which the board refuses. The table
+    stops at MAX_TABLE_KNOTS, a few mN off; should that leave more than MAX_STRAY_N, the correction
+    is refused and the identified F0 kept."""
+    import host.fitting.force_correction as force_correction
+
+    wild = poly_section([3.0, 0.0, -4.0, 0.0, 8.0, 0.1], (-2.0, 2.0), 1000.0, 1000.0, ("um", "mN"))
+    correction = F0Correction({1: [(4.8, 0.05)]})
+    span = deformation_span(wild, (-2.0, 2.0), (-25.0, 25.0))
+    kd, kf = corrected_f0_table(wild, span, correction)
+    assert len(kd) == force_correction.MAX_TABLE_KNOTS
+    d = np.linspace(span[0], span[1], 3001)
+    f = f0_function(wild)(d)
+    assert np.max(np.abs(np.interp(d, kd, kf) - (f - correction.at(f)))) < force_correction.MAX_STRAY_N
+    doc = dict(force_doc(), force=wild)
+    sections, lines = trimmed_sections(doc, Trim(0.45, 0.0, 0.0, 10, f0=correction))
+    assert "F0 corrected in closed loop" in lines[-1] and "128-knot table" in lines[-1], lines
+
+    monkeypatch.setattr(force_correction, "MAX_TABLE_KNOTS", 8)  # too few for any spring's bend
+    sections, lines = trimmed_sections(force_doc(), Trim(0.45, 0.0, 0.0, 10, f0=correction))
+    assert set(sections) == {"friction"} and "F0 bends too much to tabulate" in lines[-1], lines
+
+
+def test_a_calibration_larger_than_the_board_reads_is_never_written(tmp_path, monkeypatch):
+    """The board refuses a calibration file over firmware.calibration.MAX_BYTES at boot. The writer
+    refuses to make one (the old file stays), and the trim, which checks its sections as the board
+    will, keeps the identified F0 and says why instead of stopping the run at the flash."""
+    import pytest
+
+    import host.fitting.force_correction as force_correction
+    from firmware.calibration import MAX_BYTES
+    from host.calibration.file import write_calibration
+    from host.errors import UserError
+
+    monkeypatch.setattr(force_correction, "MAX_TABLE_KNOTS", 2001)  # every point of the dense grid
+    monkeypatch.setattr(force_correction, "TABLE_TOL_N", 1e-9)
+    sections, lines = trimmed_sections(force_doc(), Trim(0.45, 0.0, 0.0, 10, f0=F0Correction({1: [(4.8, 0.05)]})))
+    assert set(sections) == {"friction"}, lines
+    assert "F0 not corrected (the calibration would be" in lines[-1] and "more than the %d" % MAX_BYTES in lines[-1], lines
+
+    path = tmp_path / "calibration.json"
+    path.write_text("the old calibration")
+    huge = np.linspace(-2.0, 2.0, 1500)
+    from host.calibration.file import force_table_section
+
+    doc = dict(force_doc(), force=force_table_section(huge, 7.0 * huge, (-2.0, 2.0), ("um", "mN")))
+    with pytest.raises(UserError, match="more than the %d the board reads" % MAX_BYTES):
+        write_calibration(path, doc)
+    assert path.read_text() == "the old calibration"
