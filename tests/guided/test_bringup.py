@@ -143,6 +143,9 @@ def test_the_firmware_check_names_a_mpy_mismatch_and_a_loop_that_does_not_keep_t
     assert len(problems) == 1 and "timer_api" in problems[0], problems
     _, problems = check_firmware(dict(good, step_us_max=900), 1000)
     assert len(problems) == 1 and "loop_hz" in problems[0], problems
+    # on the virtual board the step's time is this computer's load: said, not advised against
+    lines, problems = check_firmware(dict(good, step_us_max=2511), 1000, simulated=True)
+    assert problems == [] and "computer's load" in lines[-1] and "loop_hz" not in lines[-1], lines
     # CircuitPython runs the plain source: its .mpy word says nothing about ours
     circuitpython = dict(good, interpreter="circuitpython 10.2.1", mpy=other["mpy"], period_us=4000, step_us_max=1400)
     lines, problems = check_firmware(circuitpython, 250)
